@@ -1,0 +1,290 @@
+//! `crawler-controller`: predictions, the optimal policy, figures, and controllers for co-simulation.
+
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use serde_json::json;
+
+use crawler_controller::optimizer::{BodyLength, GridSpec, ModelChoice, Problem};
+use crawler_controller::paper_model::{PaperModel, PaperTerms};
+use crawler_controller::policies::REGISTRY;
+use crawler_controller::verify;
+use crawler_controller::OperatingPoint;
+use crawler_plant::scenario_args::ScenarioArgs;
+
+#[derive(Parser)]
+#[command(
+    name = "crawler-controller",
+    version,
+    about = "Soft-crawler models, optimal policy and controllers"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Predict the steady state with a reduced model (same flags as `crawler-plant simulate`).
+    Predict(PredictArgs),
+    /// Maximise V subject to mileage, stress, strain and actuator limits.
+    Optimize(OptimizeArgs),
+    /// List the registered policies.
+    Policies,
+}
+
+#[derive(Args)]
+struct PredictArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    /// paper, or improved (alias travelling-wave).
+    #[arg(long, default_value = "improved")]
+    model: String,
+}
+
+#[derive(Args)]
+struct OptimizeArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    /// paper, or improved (alias travelling-wave).
+    #[arg(long, default_value = "paper")]
+    model: String,
+    /// Grid points in omega.
+    #[arg(long, default_value_t = 200)]
+    omega_points: usize,
+    /// Grid points in k.
+    #[arg(long, default_value_t = 200)]
+    k_points: usize,
+    /// Keep the scenario's body length (k must fit it) instead of the paper's one-wavelength body.
+    #[arg(long)]
+    fixed_body: bool,
+    /// Distance D, m (overrides the scenario's task).
+    #[arg(long, allow_hyphen_values = true)]
+    distance: Option<f64>,
+    /// Energy budget J0, J.
+    #[arg(long, allow_hyphen_values = true)]
+    energy: Option<f64>,
+    /// Stress limit sigma_max, Pa.
+    #[arg(long, allow_hyphen_values = true)]
+    sigma_max: Option<f64>,
+    /// Strain limit max |u_x|.
+    #[arg(long, allow_hyphen_values = true)]
+    strain_max: Option<f64>,
+    /// Actuator limit f0_max, N.
+    #[arg(long, allow_hyphen_values = true)]
+    f0_max: Option<f64>,
+    /// Bounds on omega, rad/s: MIN,MAX.
+    #[arg(long, value_delimiter = ',', num_args = 2, allow_hyphen_values = true)]
+    omega_range: Option<Vec<f64>>,
+    /// Bounds on k, rad/m: MIN,MAX.
+    #[arg(long, value_delimiter = ',', num_args = 2, allow_hyphen_values = true)]
+    k_range: Option<Vec<f64>>,
+    /// Skip the local refinement of the best cell.
+    #[arg(long)]
+    no_refine: bool,
+    /// Run the in-process plant at the optimum and compare.
+    #[arg(long)]
+    verify: bool,
+    /// Lower f0 with plant runs until every constraint holds on the plant with --margin to spare.
+    #[arg(long)]
+    certify: bool,
+    /// Relative margin for --certify.
+    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
+    margin: f64,
+    /// Print JSON (with the whole grid).
+    #[arg(long)]
+    json: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("crawler-controller: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Predict(a) => predict(a),
+        Command::Optimize(a) => optimize(a),
+        Command::Policies => {
+            for (name, help, _) in REGISTRY {
+                println!("{name:<10} {help}");
+            }
+            Ok(())
+        }
+    }
+}
+
+fn predict(a: PredictArgs) -> anyhow::Result<()> {
+    let scenario = a.scenario.load()?;
+    let model = ModelChoice::parse(&a.model).map_err(anyhow::Error::msg)?;
+    let op = OperatingPoint::of(&scenario);
+    let prediction = model.predict(&op);
+    let mut out = serde_json::to_value(&prediction)?;
+    out["alpha"] = json!(op.alpha());
+    out["zeta"] = json!(op.zeta());
+    out["pi_r"] = json!(op.pi_r());
+    out["omega"] = json!(op.wave.omega);
+    out["k"] = json!(op.wave.k);
+    out["f0"] = json!(op.wave.f0);
+    out["eps"] = json!(op.friction.eps);
+    out["n_f"] = json!(op.friction.n_f);
+    if let ModelChoice::Paper = model {
+        let t = PaperTerms::at(&op);
+        out["terms"] = serde_json::to_value(t)?;
+        out["stress_eq30_as_printed"] = json!(PaperModel::stress_eq30(&op));
+        out["resonance_velocity_eq34"] = json!(PaperModel::resonance_velocity(&op));
+    }
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
+
+fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
+    let scenario = a.scenario.load()?;
+    let model = ModelChoice::parse(&a.model).map_err(anyhow::Error::msg)?;
+    let mut task = scenario.task;
+    let mut limits = scenario.limits;
+    if let Some(x) = a.distance {
+        task.distance = x;
+    }
+    if let Some(x) = a.energy {
+        task.energy = x;
+    }
+    if let Some(x) = a.sigma_max {
+        task.sigma_max = x;
+    }
+    if let Some(x) = a.strain_max {
+        limits.strain_max = x;
+    }
+    if let Some(x) = a.f0_max {
+        limits.f0_max = x;
+    }
+    if let Some(r) = &a.omega_range {
+        limits.omega = [r[0], r[1]];
+    }
+    if let Some(r) = &a.k_range {
+        limits.k = [r[0], r[1]];
+    }
+    let problem = Problem {
+        body: scenario.plant.body,
+        friction: scenario.plant.friction,
+        task,
+        limits,
+        body_length: if a.fixed_body {
+            BodyLength::Fixed(scenario.plant.length)
+        } else {
+            BodyLength::OneWavelength
+        },
+    };
+    let grid = GridSpec {
+        omega_points: a.omega_points,
+        k_points: a.k_points,
+        refine: !a.no_refine,
+    };
+    let started = std::time::Instant::now();
+    let report = problem.optimize(&model, &grid)?;
+    let elapsed = started.elapsed().as_secs_f64();
+    let verification = if a.verify {
+        let plant = verify::run_plant(&scenario, &problem, &report.optimum, report.optimum.f0)?;
+        Some(verify::compare(
+            &problem,
+            &report.optimum,
+            report.optimum.f0,
+            &plant,
+        ))
+    } else {
+        None
+    };
+    let certification = if a.certify {
+        Some(verify::certify(
+            &scenario,
+            &problem,
+            &report.optimum,
+            a.margin,
+            10,
+        )?)
+    } else {
+        None
+    };
+    if a.json {
+        let mut out = serde_json::to_value(&report)?;
+        out["seconds"] = json!(elapsed);
+        out["verification"] = serde_json::to_value(&verification)?;
+        out["certification"] = serde_json::to_value(&certification)?;
+        println!("{}", serde_json::to_string(&out)?);
+        return Ok(());
+    }
+    let o = &report.optimum;
+    let p = &o.prediction;
+    println!(
+        "optimum ({} model, {} x {} grid{}, {:.3} s): omega = {:.4} rad/s (alpha = {:.4}), k = {:.4} rad/m, f0 = {:.4} N",
+        report.model,
+        report.omega_grid.len(),
+        report.k_grid.len(),
+        if grid.refine { " + refinement" } else { "" },
+        elapsed,
+        o.omega,
+        o.alpha,
+        o.k,
+        o.f0
+    );
+    println!("  binding constraint: {:?}", o.binding);
+    println!(
+        "  predicted: V = {:.5e} m/s, M = {:.5e} m/J (need {:.5e}), sigma = {:.5e} Pa, strain = {:.4}",
+        p.velocity.unwrap_or(f64::NAN),
+        p.mileage.unwrap_or(f64::NAN),
+        report.min_mileage,
+        p.max_stress.unwrap_or(f64::NAN),
+        p.max_strain.unwrap_or(f64::NAN)
+    );
+    if let Some(v) = &verification {
+        println!(
+            "  plant ({} cells): V = {:.5e} m/s ({:+.2} %), M = {:.5e} m/J ({:+.2} %), sigma = {:.5e} Pa ({:+.2} %), strain = {:.4}",
+            v.cells,
+            v.velocity.simulated,
+            100.0 * v.velocity.relative_error.unwrap_or(f64::NAN),
+            v.mileage.simulated,
+            100.0 * v.mileage.relative_error.unwrap_or(f64::NAN),
+            v.max_stress.simulated,
+            100.0 * v.max_stress.relative_error.unwrap_or(f64::NAN),
+            v.max_strain.simulated
+        );
+        println!(
+            "  constraints on the plant: mileage {}, stress {}, strain {}, f0 {}",
+            ok(v.holds.mileage),
+            ok(v.holds.stress),
+            ok(v.holds.strain),
+            ok(v.holds.f0)
+        );
+    }
+    if let Some(c) = &certification {
+        let last = c
+            .runs
+            .iter()
+            .rev()
+            .find(|r| (r.f0 - c.f0).abs() < 1e-15)
+            .or(c.runs.last());
+        println!(
+            "  certified: {} at f0 = {:.4} N after {} plant runs (margin {:.1} %); plant V = {:.5e} m/s",
+            c.certified,
+            c.f0,
+            c.runs.len(),
+            100.0 * c.margin,
+            last.map_or(f64::NAN, |r| r.velocity.simulated)
+        );
+    }
+    Ok(())
+}
+
+fn ok(b: bool) -> &'static str {
+    if b {
+        "holds"
+    } else {
+        "VIOLATED"
+    }
+}

@@ -1,0 +1,55 @@
+//! Built-in policies and the registry that names them.
+
+mod optimal;
+mod resonance;
+mod sweep;
+mod wave;
+
+pub use optimal::Optimal;
+pub use resonance::Resonance;
+pub use sweep::Sweep;
+pub use wave::FixedWave;
+
+use crate::controller::{Context, Controller};
+
+/// Builds a controller from the context, or says why it cannot.
+pub type Factory = fn(&Context) -> anyhow::Result<Box<dyn Controller>>;
+
+/// Every policy: name, one-line help, factory. Add a line here to register a new controller.
+pub const REGISTRY: &[(&str, &str, Factory)] = &[
+    (
+        "optimal",
+        "the constrained optimal open-loop wave (max V s.t. mileage, stress, strain, f0)",
+        optimal::build,
+    ),
+    (
+        "wave",
+        "a fixed travelling wave (f0, k, omega from flags or the scenario)",
+        wave::build,
+    ),
+    (
+        "resonance",
+        "omega = omega_n for the given k",
+        resonance::build,
+    ),
+    (
+        "sweep",
+        "a schedule of waves: --sweep ALPHA,ALPHA,... held --dwell seconds each",
+        sweep::build,
+    ),
+];
+
+/// The controller registered as `name`.
+pub fn build(name: &str, ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
+    match REGISTRY.iter().find(|(n, _, _)| *n == name) {
+        Some((_, _, factory)) => factory(ctx),
+        None => anyhow::bail!(
+            "unknown policy {name:?}: allowed {}",
+            REGISTRY
+                .iter()
+                .map(|(n, _, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}

@@ -1,0 +1,79 @@
+//! `optimal`: the constrained optimal open-loop wave for this plant's body.
+
+use crawler_plant::wave::Wave;
+
+use crate::controller::{Actuation, Context, Controller, Observation};
+use crate::optimizer::{BodyLength, GridSpec, ModelChoice, OptimizeReport, Problem};
+use crate::travelling_wave::TravellingWaveModel;
+
+/// The wave that maximises the predicted speed under the scenario's task and limits, with `k`
+/// restricted to the wave numbers that fit the plant's body.
+#[derive(Debug, Clone)]
+pub struct Optimal {
+    /// The optimiser's result.
+    pub report: OptimizeReport,
+    wave: Wave,
+}
+
+pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
+    let problem = Problem {
+        body: ctx.body,
+        friction: ctx.friction,
+        task: ctx.scenario.task,
+        limits: ctx.scenario.limits,
+        body_length: BodyLength::Fixed(ctx.length),
+    };
+    let model = ctx
+        .options
+        .model
+        .unwrap_or(ModelChoice::Improved(TravellingWaveModel::default()));
+    let n = ctx
+        .options
+        .grid
+        .unwrap_or(if matches!(model, ModelChoice::Paper) {
+            400
+        } else {
+            48
+        });
+    let report = problem.optimize(
+        &model,
+        &GridSpec {
+            omega_points: n,
+            k_points: n,
+            refine: true,
+        },
+    )?;
+    let o = &report.optimum;
+    let wave = Wave {
+        f0: o.f0,
+        k: o.k,
+        omega: o.omega,
+        phase: 0.0,
+    };
+    wave.validate_for_body(ctx.length, ctx.cells)?;
+    Ok(Box::new(Optimal { report, wave }))
+}
+
+impl Controller for Optimal {
+    fn name(&self) -> &str {
+        "optimal"
+    }
+
+    fn act(&mut self, _obs: &Observation) -> Actuation {
+        Actuation::Wave(self.wave)
+    }
+
+    fn describe(&self) -> String {
+        let o = &self.report.optimum;
+        format!(
+            "optimal ({} model): f0 = {:.4} N, k = {:.4} rad/m, omega = {:.4} rad/s (alpha = {:.3}), binding: {:?}, predicted V = {:.4e} m/s",
+            self.report.model,
+            o.f0,
+            o.k,
+            o.omega,
+            o.alpha,
+            o.binding,
+            o.prediction.velocity.unwrap_or(f64::NAN)
+        )
+    }
+}

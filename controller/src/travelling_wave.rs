@@ -1,0 +1,258 @@
+//! The improved reduced model: the exact steady state under a travelling wave on a periodic body.
+//!
+//! Under `A_m f = f0 sin(kx - omega t + phase)` the steady state is a travelling wave plus a drift,
+//! `u = W(xi) + V t` with `xi = kx - omega t + phase` (physics-notes §4). With `y = W'` the
+//! material velocity is `w = u_t = V - omega y` and the strain `u_x = k y`; substituting turns the
+//! PDE into the periodic, nonsmooth ODE
+//!
+//! ```text
+//!     kappa w' + c_v w + eps c_d (s - n_F) = f0 k cos xi,   s ∈ Sgn(w),   kappa = (A_c E k^2 - rho omega^2) / omega
+//! ```
+//!
+//! in which `V` does not appear: the velocity profile is found on its own and `V = <w>` follows
+//! from `<y> = 0` (the displacement is periodic in x). The ODE is split as `w = w_p + z`, with
+//! `w_p` the exact periodic response to the cosine, and `z` integrated exactly between steps for
+//! constant `s` (`z -> z*(s)` at rate `c_v / |kappa|`), marching in the direction in which the
+//! homogeneous part decays. The set-valued `s` is resolved at the end of each step by the same
+//! closed form as the plant ([`crawler_plant::friction::select`]), so stick phases (`w = 0`) are
+//! exact. The periodic solution is the fixed point of the one-period map of `z`, which is
+//! piecewise affine with slope `prod E` (0 once a stick occurs): Newton converges in a few sweeps.
+
+use std::f64::consts::TAU;
+
+use crawler_plant::friction::select;
+
+use crate::operating_point::OperatingPoint;
+use crate::prediction::{Model, Prediction, Validity};
+
+/// The travelling-wave model, `improved` on the command line.
+#[derive(Debug, Clone, Copy)]
+pub struct TravellingWaveModel {
+    /// Steps per forcing period in the march.
+    pub steps: usize,
+    /// Shortest stick phase counted as an episode, in forcing periods.
+    pub min_stick_periods: f64,
+}
+
+impl Default for TravellingWaveModel {
+    fn default() -> Self {
+        Self {
+            steps: 2048,
+            min_stick_periods: 0.02,
+        }
+    }
+}
+
+/// The steady profile over one period, for plots and overlays.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Profile {
+    /// `xi_j` of the samples, rad (marching order, taken mod 2 pi in [0, 2 pi)).
+    pub xi: Vec<f64>,
+    /// Material velocity `w(xi_j)`, m/s.
+    pub velocity: Vec<f64>,
+    /// Friction selection `s(xi_j)`.
+    pub selection: Vec<f64>,
+}
+
+/// Sums over one period of the march.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sweep {
+    end_z: f64,
+    slope: f64,
+    sum_w: f64,
+    sum_s: f64,
+    sum_w_cos: f64,
+    stuck: usize,
+    max_tension_y: f64,
+    min_w: f64,
+    max_w: f64,
+    episodes: usize,
+}
+
+impl TravellingWaveModel {
+    fn setup(&self, op: &OperatingPoint) -> Setup {
+        let w = op.wave;
+        let kappa =
+            (op.body.stiffness() * w.k * w.k - op.body.density * w.omega * w.omega) / w.omega;
+        let h = TAU / self.steps as f64;
+        let denom = cv * cv + kappa * kappa;
+        // w_p = P cos xi + Q sin xi solves kappa w' + c_v w = f0 k cos xi.
+        let p = w.f0 * w.k * cv / denom;
+        let q = w.f0 * w.k * kappa / denom;
+        let e = if kappa == 0.0 {
+            0.0
+        } else {
+            (-cv * h / kappa.abs()).exp()
+        };
+        let dir = if kappa < 0.0 { -1.0 } else { 1.0 };
+        let g = (1.0 - e) * op.friction.band() / cv;
+        let push = (1.0 - e) * op.friction.band() * op.friction.n_f / cv;
+        Setup {
+            p,
+            q,
+            e,
+            dir,
+            g,
+            push,
+            h,
+        }
+    }
+
+    fn sweep(
+        &self,
+        op: &OperatingPoint,
+        s: &Setup,
+        z0: f64,
+        mut profile: Option<&mut Profile>,
+    ) -> Sweep {
+        let (ch, sh) = ((s.dir * s.h).cos(), (s.dir * s.h).sin());
+        let (mut c, mut sn) = (1.0f64, 0.0f64);
+        let mut z = z0;
+        let mut out = Sweep {
+            slope: 1.0,
+            max_tension_y: f64::NEG_INFINITY,
+            min_w: f64::INFINITY,
+            max_w: f64::NEG_INFINITY,
+            ..Default::default()
+        };
+        let ae = op.body.stiffness();
+        let w_wave = op.wave;
+        let min_run = (self.min_stick_periods * self.steps as f64).ceil().max(1.0) as usize;
+        let mut run = 0usize;
+        let mut first_run: Option<usize> = None;
+        let mut ended_first_slide = false;
+        for j in 1..=self.steps {
+            // rotate to xi_j = dir * j * h (resynchronise now and then to bound round-off)
+            if j % 256 == 0 {
+                let (a, b) = (s.dir * j as f64 * s.h).sin_cos();
+                sn = a;
+                c = b;
+            } else {
+                let nc = c * ch - sn * sh;
+                sn = sn * ch + c * sh;
+                c = nc;
+            }
+            let wp = s.p * c + s.q * sn;
+            let b = wp + s.e * z + s.push;
+            let sel = select(b, s.g);
+            let w = sel.velocity;
+            z = w - wp;
+            out.slope = if sel.stuck { 0.0 } else { out.slope * s.e };
+            out.sum_w += w;
+            out.min_w = out.min_w.min(w);
+            out.max_w = out.max_w.max(w);
+            out.sum_s += sel.s;
+            out.sum_w_cos += w * c;
+            if sel.stuck {
+                out.stuck += 1;
+                run += 1;
+            } else {
+                if run > 0 {
+                    if ended_first_slide {
+                        if run >= min_run {
+                            out.episodes += 1;
+                        }
+                    } else {
+                        first_run = Some(run);
+                    }
+                }
+                ended_first_slide = true;
+                run = 0;
+            }
+            // tension / f0-scale: T = A_c E k y + f0 sin xi with y = (V - w)/omega; V added later.
+            let tension_wo_v = -ae * w_wave.k * w / w_wave.omega + w_wave.f0 * sn;
+            out.max_tension_y = out.max_tension_y.max(tension_wo_v);
+            if let Some(pr) = profile.as_deref_mut() {
+                pr.xi.push((s.dir * j as f64 * s.h).rem_euclid(TAU));
+                pr.velocity.push(w);
+                pr.selection.push(sel.s);
+            }
+        }
+        // A stick run that wraps around the period boundary counts once.
+        let wrap = run + first_run.unwrap_or(0);
+        if run > 0 && !ended_first_slide {
+            // stuck for the whole period: no episode ends
+        } else if wrap >= min_run && (run > 0 || first_run.is_some()) {
+            out.episodes += 1;
+        }
+        out.end_z = z;
+        out
+    }
+
+    /// Solves the periodic problem; returns the final sweep (and fills `profile` if given).
+    fn solve(&self, op: &OperatingPoint, profile: Option<&mut Profile>) -> Option<(Setup, Sweep)> {
+        let s = self.setup(op);
+        let mut z0 = 0.0;
+        let scale = (s.p.abs() + s.q.abs() + s.g + 1e-300).max(1e-300);
+        for _ in 0..60 {
+            let sw = self.sweep(op, &s, z0, None);
+            let r = sw.end_z - z0;
+            if r.abs() <= 1e-13 * scale {
+                break;
+            }
+            // Newton on the piecewise-affine period map z0 -> z_end (slope in [0, 1)).
+            z0 += r / (1.0 - sw.slope);
+        }
+        let sw = self.sweep(op, &s, z0, profile);
+        let r = sw.end_z - z0;
+        (r.abs() <= 1e-9 * scale && sw.sum_w.is_finite()).then_some((s, sw))
+    }
+
+    /// The steady velocity profile over one period.
+    pub fn profile(&self, op: &OperatingPoint) -> Option<Profile> {
+        let mut pr = Profile {
+            xi: Vec::new(),
+            velocity: Vec::new(),
+            selection: Vec::new(),
+        };
+        self.solve(op, Some(&mut pr))?;
+        Some(pr)
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Setup {
+    p: f64,
+    q: f64,
+    e: f64,
+    dir: f64,
+    g: f64,
+    push: f64,
+    h: f64,
+}
+
+impl Model for TravellingWaveModel {
+    fn name(&self) -> &'static str {
+        "improved"
+    }
+
+    fn predict(&self, op: &OperatingPoint) -> Prediction {
+        let Some((s, sw)) = self.solve(op, None) else {
+            return Prediction::outside(
+                "improved",
+                "the periodic travelling-wave solution did not converge".into(),
+            );
+        };
+        let m = self.steps as f64;
+        let w = op.wave;
+        let velocity = sw.sum_w / m;
+        // P per wavelength = f0 * integral_0^{2 pi} w cos xi dxi (actuator power, eq. 7).
+        let power = w.f0 * sw.sum_w_cos * s.h * op.wavelengths;
+        let max_tension = sw.max_tension_y + op.body.stiffness() * w.k * velocity / w.omega;
+        let stress = max_tension / op.body.area;
+        // strain u_x = k y = k (V - w) / omega
+        let strain = w.k / w.omega * (velocity - sw.min_w).abs().max((sw.max_w - velocity).abs());
+        Prediction {
+            model: "improved",
+            velocity: Some(velocity),
+            power: Some(power),
+            mileage: Some(velocity.abs() / power),
+            max_stress: Some(stress),
+            max_strain: Some(strain),
+            stuck_fraction: Some(sw.stuck as f64 / m),
+            mean_friction_selection: Some(sw.sum_s / m),
+            episodes_per_node_per_period: Some(sw.episodes as f64),
+            validity: Validity::Valid,
+        }
+    }
+}

@@ -1,0 +1,35 @@
+//! # crawler-plant
+//!
+//! A finite-difference solver of the soft peristaltic crawler of Gusty et al. (the nonlinear
+//! wave equation `rho u_tt = A_c E u_xx + (A_m f)_x - F(u_t)` on a periodic body) with asymmetric
+//! Coulomb + viscous friction and exact (set-valued) stick, wrapped as an FMI 3.0 style
+//! co-simulation slave.
+//!
+//! - [`solver`]: the kernel (leapfrog + closed-form implicit friction per node).
+//! - [`friction`]: the set-valued friction law and its exact one-step solution.
+//! - [`plant`]: the plant advanced in communication steps, with actuation, metrics and events.
+//! - [`slave`]: the FMI-style lifecycle, value references and state serialization.
+//! - [`scenario`]: TOML scenarios; [`simulate`]: an in-process run under a fixed wave.
+//!
+//! Units are SI throughout: m, s, N, Pa, W, J.
+
+pub mod error;
+pub mod events;
+pub mod friction;
+pub mod metrics;
+pub mod model_description;
+pub mod params;
+pub mod plant;
+pub mod scenario;
+pub mod scenario_args;
+pub mod simulate;
+pub mod slave;
+pub mod solver;
+pub mod wave;
+
+pub use error::ParamError;
+pub use params::PlantParams;
+pub use plant::Plant;
+pub use scenario::Scenario;
+pub use slave::Slave;
+pub use wave::Wave;

@@ -1,0 +1,290 @@
+//! Running and steady-state metrics: averages over whole forcing periods.
+//!
+//! Every internal step adds its reductions to the current *block*. For a travelling wave a block
+//! is one forcing period `2 pi / omega`, counted from the moment the wave was applied; for a
+//! general muscle field it is `numerics.block` seconds. A block closes at the first internal step
+//! that starts at or after its end, so it holds whole periods up to one internal step. Blocks that
+//! start at least `numerics.settle` seconds after the last change of actuation form the steady
+//! window; the steady metrics are the sums over that window.
+
+use serde::{Deserialize, Serialize};
+
+use crate::solver::StepSums;
+
+/// Additive sums over a span of internal steps (a block or the steady window).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sums {
+    /// Internal steps in the span.
+    pub steps: u64,
+    /// First time in the span, s.
+    pub start: f64,
+    /// End time of the span (start of the step after the last), s.
+    pub end: f64,
+    /// Sum over steps and nodes of `v⁺`, m/s.
+    pub sum_v: f64,
+    /// Sum over steps and nodes of `v⁻`, m/s.
+    pub sum_v_old: f64,
+    /// Sum over nodes of `v⁻` at the first step of the span, m/s.
+    pub first_v_old: f64,
+    /// Sum over nodes of `v⁺` at the last step of the span, m/s.
+    pub last_v: f64,
+    /// Sum over steps and nodes of `s`.
+    pub sum_s: f64,
+    /// Node-steps spent stuck.
+    pub stuck: f64,
+    /// Largest tension, N.
+    pub max_tension: f64,
+    /// Largest `|u_x|`.
+    pub max_strain: f64,
+    /// Work done by the actuator, J (over the whole body).
+    pub energy_in: f64,
+    /// Energy dissipated by friction, J (over the whole body).
+    pub dissipated: f64,
+    /// Stick-slip episodes that ended in the span.
+    pub episodes: u64,
+    /// Total duration of those episodes, s.
+    pub stick_time: f64,
+}
+
+impl Sums {
+    /// An empty span starting at `start` seconds.
+    pub fn empty(start: f64) -> Self {
+        Self {
+            steps: 0,
+            start,
+            end: start,
+            sum_v: 0.0,
+            sum_v_old: 0.0,
+            first_v_old: 0.0,
+            last_v: 0.0,
+            sum_s: 0.0,
+            stuck: 0.0,
+            max_tension: f64::NEG_INFINITY,
+            max_strain: 0.0,
+            energy_in: 0.0,
+            dissipated: 0.0,
+            episodes: 0,
+            stick_time: 0.0,
+        }
+    }
+
+    /// Appends the span `other`, which must follow this one.
+    pub fn merge(&mut self, other: &Sums) {
+        if self.steps == 0 {
+            self.start = other.start;
+            self.first_v_old = other.first_v_old;
+        }
+        self.steps += other.steps;
+        self.end = other.end;
+        self.last_v = other.last_v;
+        self.sum_v += other.sum_v;
+        self.sum_v_old += other.sum_v_old;
+        self.sum_s += other.sum_s;
+        self.stuck += other.stuck;
+        self.max_tension = self.max_tension.max(other.max_tension);
+        self.max_strain = self.max_strain.max(other.max_strain);
+        self.energy_in += other.energy_in;
+        self.dissipated += other.dissipated;
+        self.episodes += other.episodes;
+        self.stick_time += other.stick_time;
+    }
+
+    /// The metrics of this span, for a body of `cells` nodes, cross-section `area` (m^2), and a
+    /// forcing period (or block length) `period` in seconds.
+    pub fn metrics(&self, cells: usize, dt: f64, area: f64, period: f64) -> Metrics {
+        let node_steps = (self.steps as f64) * cells as f64;
+        let duration = self.steps as f64 * dt;
+        let velocity = self.sum_v / node_steps;
+        let n = cells as f64;
+        let power = self.energy_in / duration;
+        Metrics {
+            start: self.start,
+            end: self.end,
+            periods: duration / period,
+            velocity,
+            power,
+            mileage: velocity.abs() / power,
+            max_stress: self.max_tension / area,
+            max_tension: self.max_tension,
+            max_strain: self.max_strain,
+            stuck_fraction: self.stuck / node_steps,
+            mean_friction_selection: self.sum_s / node_steps,
+            dissipation: self.dissipated / duration,
+            episodes: self.episodes,
+            episodes_per_node_per_period: self.episodes as f64 / (cells as f64 * duration / period),
+            mean_stick_duration: if self.episodes > 0 {
+                self.stick_time / self.episodes as f64
+            } else {
+                0.0
+            },
+            centred_velocity: 0.5 * (self.sum_v + self.sum_v_old) / node_steps,
+            mean_velocity_change: (self.last_v - self.first_v_old) / n,
+        }
+    }
+}
+
+/// Metrics of a span of whole forcing periods (SI units).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// Start of the averaging window, s.
+    pub start: f64,
+    /// End of the averaging window, s.
+    pub end: f64,
+    /// Length of the window in forcing periods (or blocks).
+    pub periods: f64,
+    /// Mean speed `V` (eq. 5), m/s.
+    pub velocity: f64,
+    /// Input power over the body `P` (eq. 7), W.
+    pub power: f64,
+    /// Mileage `M = |V| / P`, m/J.
+    pub mileage: f64,
+    /// Largest engineering stress `sigma_s = sup T / A_c` (eq. 4), Pa.
+    pub max_stress: f64,
+    /// Largest tension `sup T`, N.
+    pub max_tension: f64,
+    /// Largest body strain `max |u_x|`.
+    pub max_strain: f64,
+    /// Share of node-time spent stuck.
+    pub stuck_fraction: f64,
+    /// Space-time mean of the friction selection `<s>`, stuck points included.
+    pub mean_friction_selection: f64,
+    /// Power dissipated by friction, W (equals `power` in a steady state).
+    pub dissipation: f64,
+    /// Stick-slip episodes that ended in the window.
+    pub episodes: u64,
+    /// Episodes per node per forcing period.
+    pub episodes_per_node_per_period: f64,
+    /// Mean duration of those episodes, s.
+    pub mean_stick_duration: f64,
+    /// Space-time mean of the centred velocity `(v⁺ + v⁻) / 2` on which the viscous force acts, m/s.
+    pub centred_velocity: f64,
+    /// Change of the body's mean velocity over the window, m/s.
+    pub mean_velocity_change: f64,
+}
+
+impl Metrics {
+    /// Relative residual of the scheme's exact momentum balance over the window,
+    /// `rho dV/T_w + c_v <(v⁺+v⁻)/2> + eps c_d (<s> - n_F) = 0` (elastic and muscle forces cancel
+    /// in the sum over the body), scaled by `c_v |<(v⁺+v⁻)/2>|`. Round-off level for a correct plant.
+    pub fn momentum_residual(&self, density: f64, friction: &crate::params::Friction) -> f64 {
+        let duration = self.end - self.start;
+        let r = density * self.mean_velocity_change / duration
+            + friction.viscous * self.centred_velocity
+            + friction.band() * (self.mean_friction_selection - friction.n_f);
+        r.abs() / (friction.viscous * self.centred_velocity.abs())
+    }
+}
+
+/// A completed block, reported as it closes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BlockReport {
+    /// Block number since the last change of actuation.
+    pub index: u64,
+    /// True if the block belongs to the steady window.
+    pub steady: bool,
+    /// The block's sums.
+    pub sums: Sums,
+}
+
+/// Splits the internal steps into blocks and accumulates the steady window.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MetricsTracker {
+    /// Block length, s (the forcing period, or `numerics.block` for a field).
+    pub block_len: f64,
+    /// Time the current block sequence started (last actuation change), s.
+    pub origin: f64,
+    /// Blocks starting before this time are transient, s.
+    pub settle_until: f64,
+    /// Index of the current block.
+    pub block_index: u64,
+    /// End time of the current block, s.
+    pub block_end: f64,
+    /// The current (open) block.
+    pub block: Sums,
+    /// The steady window so far (complete blocks only).
+    pub steady: Sums,
+    /// Blocks closed since the caller last drained them.
+    #[serde(skip)]
+    pub closed: Vec<BlockReport>,
+}
+
+impl MetricsTracker {
+    /// Starts a block sequence at `origin` with blocks of `block_len` s and a transient of `settle` s.
+    pub fn new(origin: f64, block_len: f64, settle: f64) -> Self {
+        Self {
+            block_len,
+            origin,
+            settle_until: origin + settle,
+            block_index: 0,
+            block_end: origin + block_len,
+            block: Sums::empty(origin),
+            steady: Sums::empty(origin),
+            closed: Vec::new(),
+        }
+    }
+
+    /// Restarts the block sequence at `origin` (actuation changed): the open block is dropped
+    /// from the steady window and the steady window is cleared.
+    pub fn restart(&mut self, origin: f64, block_len: f64, settle: f64) {
+        let closed = std::mem::take(&mut self.closed);
+        *self = Self::new(origin, block_len, settle);
+        self.closed = closed;
+    }
+
+    /// Adds the internal step starting at `t` (s) of length `dt` with reductions `sums`,
+    /// `energy_in` and `dissipated` (J), after closing the block if `t` reached its end.
+    pub fn add_step(&mut self, t: f64, dt: f64, sums: &StepSums, energy_in: f64, dissipated: f64) {
+        if t >= self.block_end {
+            self.close_block(t);
+        }
+        let b = &mut self.block;
+        if b.steps == 0 {
+            b.start = t;
+            b.first_v_old = sums.sum_v_old;
+        }
+        b.steps += 1;
+        b.end = t + dt;
+        b.last_v = sums.sum_v;
+        b.sum_v += sums.sum_v;
+        b.sum_v_old += sums.sum_v_old;
+        b.sum_s += sums.sum_s;
+        b.stuck += sums.stuck;
+        b.max_tension = b.max_tension.max(sums.max_tension);
+        b.max_strain = b.max_strain.max(sums.max_strain);
+        b.energy_in += energy_in;
+        b.dissipated += dissipated;
+    }
+
+    /// Records a stick-slip episode of `duration` s that ended in the current block.
+    pub fn add_episode(&mut self, duration: f64) {
+        self.block.episodes += 1;
+        self.block.stick_time += duration;
+    }
+
+    /// Adds actuator work done outside a step (a jump of the muscle force), J.
+    pub fn add_energy(&mut self, energy: f64) {
+        self.block.energy_in += energy;
+    }
+
+    fn close_block(&mut self, t: f64) {
+        let steady =
+            self.block.start >= self.settle_until - 1e-12 * self.block_len && self.block.steps > 0;
+        if steady {
+            self.steady.merge(&self.block);
+        }
+        self.closed.push(BlockReport {
+            index: self.block_index,
+            steady,
+            sums: self.block,
+        });
+        self.block_index += 1;
+        // Block ends are computed from the integer block index: no drift from adding floats.
+        self.block_end = self.origin + (self.block_index + 1) as f64 * self.block_len;
+        // A step longer than a block (coarse dt, fast wave) skips empty blocks.
+        while self.block_end <= t {
+            self.block_index += 1;
+            self.block_end = self.origin + (self.block_index + 1) as f64 * self.block_len;
+        }
+        self.block = Sums::empty(t);
+    }
+}

@@ -1,0 +1,442 @@
+//! Scenario files (TOML): the plant's parameters, the actuation, the run length, the task.
+//!
+//! Unknown keys and wrong types are rejected with the line they are on; every value is checked
+//! and an error names the field, the value and what is allowed. See `scenarios/paper.toml`.
+
+use serde::{Deserialize, Serialize};
+use std::f64::consts::TAU;
+use std::path::Path;
+
+use crate::error::{finite, non_negative, positive, ParamError};
+use crate::params::{Body, Friction, Numerics, PlantParams};
+use crate::wave::Wave;
+
+/// The paper's scenario, embedded in the binaries.
+pub const PAPER_TOML: &str = include_str!("../../scenarios/paper.toml");
+
+/// Why a scenario could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, an unknown key or a wrong type (the message gives the line).
+    #[error("scenario {origin}: {message}")]
+    Syntax {
+        /// The file name or `<embedded>`.
+        origin: String,
+        /// The parser's message with line and column.
+        message: String,
+    },
+    /// A value out of range.
+    #[error("scenario {origin}: {source}")]
+    Invalid {
+        /// The file name.
+        origin: String,
+        /// The field at fault.
+        source: ParamError,
+    },
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    name: Option<String>,
+    description: Option<String>,
+    body: RawBody,
+    friction: Friction,
+    actuation: RawActuation,
+    #[serde(default)]
+    numerics: RawNumerics,
+    #[serde(default)]
+    events: RawEvents,
+    #[serde(default)]
+    task: Task,
+    #[serde(default)]
+    limits: Limits,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBody {
+    area: f64,
+    density: f64,
+    youngs_modulus: f64,
+    length: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawActuation {
+    f0: f64,
+    k: f64,
+    omega: Option<f64>,
+    alpha: Option<f64>,
+    #[serde(default)]
+    phase: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawNumerics {
+    cells: i64,
+    courant: f64,
+    step: f64,
+    t_end: f64,
+    settle: f64,
+    block: Option<f64>,
+}
+
+impl Default for RawNumerics {
+    fn default() -> Self {
+        Self {
+            cells: 128,
+            courant: 0.9,
+            step: 1e-3,
+            t_end: 10.0,
+            settle: 5.0,
+            block: None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawEvents {
+    min_stick_periods: f64,
+}
+
+impl Default for RawEvents {
+    fn default() -> Self {
+        Self {
+            min_stick_periods: 0.02,
+        }
+    }
+}
+
+/// The task of the paper's Sec. V: travel `distance` on `energy`, never exceed `sigma_max`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Task {
+    /// Distance to travel `D`, m.
+    pub distance: f64,
+    /// Stored energy `J0`, J.
+    pub energy: f64,
+    /// Ultimate tensile strength `sigma_max`, Pa.
+    pub sigma_max: f64,
+}
+
+impl Default for Task {
+    fn default() -> Self {
+        Self {
+            distance: 1.0,
+            energy: 20.0,
+            sigma_max: 100e3,
+        }
+    }
+}
+
+impl Task {
+    /// Required mileage `D / J0`, m/J.
+    pub fn min_mileage(&self) -> f64 {
+        self.distance / self.energy
+    }
+
+    /// Validates signs.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        positive("task.distance", self.distance)?;
+        positive("task.energy", self.energy)?;
+        positive("task.sigma_max", self.sigma_max)?;
+        Ok(())
+    }
+}
+
+/// Actuator and body limits for the optimiser.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Limits {
+    /// `[omega_min, omega_max]`, rad/s.
+    pub omega: [f64; 2],
+    /// `[k_min, k_max]`, rad/m.
+    pub k: [f64; 2],
+    /// Largest muscle-force amplitude, N.
+    pub f0_max: f64,
+    /// Largest body strain `|u_x|`.
+    pub strain_max: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            omega: [10.0, 300.0],
+            k: [TAU, 4.0 * TAU],
+            f0_max: 5.0,
+            strain_max: 0.3,
+        }
+    }
+}
+
+impl Limits {
+    /// Validates bounds: positive, finite, `min <= max`.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        for (name, [lo, hi]) in [("limits.omega", self.omega), ("limits.k", self.k)] {
+            positive(&format!("{name}[0]"), lo)?;
+            positive(&format!("{name}[1]"), hi)?;
+            if lo > hi {
+                return Err(ParamError::new(
+                    name,
+                    format!("[{lo}, {hi}]"),
+                    "[min, max] with min <= max",
+                ));
+            }
+        }
+        positive("limits.f0_max", self.f0_max)?;
+        positive("limits.strain_max", self.strain_max)?;
+        Ok(())
+    }
+}
+
+/// Command-line overrides of the common fields.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// Dry friction coefficient.
+    pub eps: Option<f64>,
+    /// Asymmetry `n_F`.
+    pub n_f: Option<f64>,
+    /// Wave amplitude, N.
+    pub f0: Option<f64>,
+    /// Wave number, rad/m.
+    pub k: Option<f64>,
+    /// Angular frequency, rad/s.
+    pub omega: Option<f64>,
+    /// Frequency ratio `omega / omega_n`.
+    pub alpha: Option<f64>,
+    /// Number of cells.
+    pub cells: Option<i64>,
+    /// End time, s.
+    pub t_end: Option<f64>,
+}
+
+/// A validated scenario.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Scenario {
+    /// Short name.
+    pub name: String,
+    /// One line of description.
+    pub description: String,
+    /// The plant.
+    pub plant: PlantParams,
+    /// The travelling wave.
+    pub wave: Wave,
+    /// End time of a run, s.
+    pub t_end: f64,
+    /// The task constraints.
+    pub task: Task,
+    /// The optimiser's limits.
+    pub limits: Limits,
+    /// Shortest counted stick phase, in forcing periods.
+    pub min_stick_periods: f64,
+}
+
+impl Scenario {
+    /// The same scenario driven by another wave. The body stays as it is, unless `length` is
+    /// given (the paper's convention of a body one wavelength long is `Some(2 pi / k)`); the
+    /// stick threshold and the averaging block follow the new period. The wave must fit the body.
+    pub fn with_wave(&self, wave: Wave, length: Option<f64>) -> Result<Scenario, ParamError> {
+        let mut s = self.clone();
+        s.wave = wave;
+        if let Some(l) = length {
+            s.plant.length = positive("body.length", l)?;
+        }
+        s.plant.numerics.min_stick = self.min_stick_periods * wave.period();
+        s.plant.numerics.block = wave.period();
+        s.plant.validate()?;
+        wave.validate_for_body(s.plant.length, s.plant.numerics.cells)?;
+        Ok(s)
+    }
+
+    /// The paper's scenario (embedded copy of `scenarios/paper.toml`).
+    pub fn paper() -> Self {
+        Self::from_toml(PAPER_TOML, "<embedded paper.toml>", &Overrides::default())
+            .expect("the embedded paper scenario is valid")
+    }
+
+    /// Loads a scenario file and applies overrides.
+    pub fn from_file(path: &Path, overrides: &Overrides) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml(&text, &path.display().to_string(), overrides)
+    }
+
+    /// Loads the file at `path`, or the embedded paper scenario if `None`.
+    pub fn load(path: Option<&Path>, overrides: &Overrides) -> Result<Self, ScenarioError> {
+        match path {
+            Some(p) => Self::from_file(p, overrides),
+            None => Self::from_toml(PAPER_TOML, "<embedded paper.toml>", overrides),
+        }
+    }
+
+    /// Parses TOML text; `origin` names it in errors.
+    pub fn from_toml(
+        text: &str,
+        origin: &str,
+        overrides: &Overrides,
+    ) -> Result<Self, ScenarioError> {
+        let raw: RawScenario = toml::from_str(text).map_err(|e| ScenarioError::Syntax {
+            origin: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        raw.resolve(overrides)
+            .map_err(|source| ScenarioError::Invalid {
+                origin: origin.to_string(),
+                source,
+            })
+    }
+
+    /// Undamped natural frequency of the wave's mode, `omega_n = k c`, rad/s.
+    pub fn natural_frequency(&self) -> f64 {
+        self.wave.k * self.plant.body.wave_speed()
+    }
+
+    /// Frequency ratio `alpha = omega / omega_n`.
+    pub fn alpha(&self) -> f64 {
+        self.wave.omega / self.natural_frequency()
+    }
+}
+
+impl RawScenario {
+    fn resolve(mut self, o: &Overrides) -> Result<Scenario, ParamError> {
+        if let Some(x) = o.eps {
+            self.friction.eps = x;
+        }
+        if let Some(x) = o.n_f {
+            self.friction.n_f = x;
+        }
+        if let Some(x) = o.f0 {
+            self.actuation.f0 = x;
+        }
+        if let Some(x) = o.k {
+            self.actuation.k = x;
+        }
+        if o.omega.is_some() && o.alpha.is_some() {
+            return Err(ParamError::new(
+                "omega/alpha",
+                "both given",
+                "at most one of --omega and --alpha",
+            ));
+        }
+        if let Some(x) = o.omega {
+            self.actuation.omega = Some(x);
+            self.actuation.alpha = None;
+        }
+        if let Some(x) = o.alpha {
+            self.actuation.alpha = Some(x);
+            self.actuation.omega = None;
+        }
+        if let Some(x) = o.cells {
+            self.numerics.cells = x;
+        }
+        if let Some(x) = o.t_end {
+            self.numerics.t_end = x;
+        }
+
+        let body = Body {
+            area: self.body.area,
+            density: self.body.density,
+            youngs_modulus: self.body.youngs_modulus,
+        };
+        body.validate()?;
+        self.friction.validate()?;
+        positive("actuation.k", self.actuation.k)?;
+        let omega_n = self.actuation.k * body.wave_speed();
+        let omega = match (self.actuation.omega, self.actuation.alpha) {
+            (Some(_), Some(_)) => {
+                return Err(ParamError::new(
+                    "actuation.omega/alpha",
+                    "both given",
+                    "exactly one of omega and alpha",
+                ))
+            }
+            (None, None) => {
+                return Err(ParamError::new(
+                    "actuation.omega/alpha",
+                    "neither given",
+                    "exactly one of omega and alpha",
+                ))
+            }
+            (Some(w), None) => positive("actuation.omega", w)?,
+            (None, Some(a)) => positive("actuation.alpha", a)? * omega_n,
+        };
+        let wave = Wave {
+            f0: non_negative("actuation.f0", self.actuation.f0)?,
+            k: self.actuation.k,
+            omega,
+            phase: finite("actuation.phase", self.actuation.phase)?,
+        };
+        let length = match self.body.length {
+            Some(l) => positive("body.length", l)?,
+            None => wave.wavelength(),
+        };
+        let cells = self.numerics.cells;
+        if cells < crate::params::MIN_CELLS as i64 || cells > crate::params::MAX_CELLS as i64 {
+            return Err(ParamError::new(
+                "numerics.cells",
+                cells,
+                format!(
+                    "an integer in [{}, {}]",
+                    crate::params::MIN_CELLS,
+                    crate::params::MAX_CELLS
+                ),
+            ));
+        }
+        let t_end = positive("numerics.t_end", self.numerics.t_end)?;
+        let min_stick_periods =
+            non_negative("events.min_stick_periods", self.events.min_stick_periods)?;
+        let block = match self.numerics.block {
+            Some(b) => positive("numerics.block", b)?,
+            None => wave.period(),
+        };
+        let numerics = Numerics {
+            cells: cells as usize,
+            courant: self.numerics.courant,
+            step: self.numerics.step,
+            settle: self.numerics.settle,
+            min_stick: min_stick_periods * wave.period(),
+            block,
+        };
+        let plant = PlantParams {
+            body,
+            friction: self.friction,
+            length,
+            numerics,
+        };
+        plant.validate()?;
+        if numerics.step > t_end {
+            return Err(ParamError::new(
+                "numerics.step",
+                numerics.step,
+                format!("<= numerics.t_end = {t_end}"),
+            ));
+        }
+        wave.validate_for_body(length, plant.numerics.cells)?;
+        self.task.validate()?;
+        self.limits.validate()?;
+        Ok(Scenario {
+            name: self.name.unwrap_or_else(|| "unnamed".into()),
+            description: self.description.unwrap_or_default(),
+            plant,
+            wave,
+            t_end,
+            task: self.task,
+            limits: self.limits,
+            min_stick_periods,
+        })
+    }
+}

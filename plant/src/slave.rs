@@ -1,0 +1,661 @@
+//! An FMI 3.0 co-simulation style slave around the [`Plant`].
+//!
+//! Lifecycle: `instantiate` → Instantiated → `enter_initialization_mode` → InitializationMode →
+//! `exit_initialization_mode` → StepMode → `terminate` → Terminated; `reset` returns to
+//! Instantiated from any state. A call that is not allowed in the current state, or any other
+//! failure reported as `Error`, puts the slave into the Error state, from which only getters,
+//! `set_state` and `reset` are accepted (as in FMI 3.0).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::ParamError;
+use crate::model_description::{vr, ModelDescription};
+use crate::params::PlantParams;
+use crate::plant::{Drive, Plant, PlantState, StepError};
+use crate::wave::Wave;
+
+/// Lifecycle states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LifecycleState {
+    /// Created; fixed parameters may be set.
+    Instantiated,
+    /// Initialisation: parameters and inputs may be set, outputs read.
+    InitializationMode,
+    /// Stepping.
+    StepMode,
+    /// Finished; only getters and reset.
+    Terminated,
+    /// A call failed; only getters, `set_state` and reset.
+    Error,
+}
+
+/// Errors returned by the slave (FMI `fmi3Error`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SlaveError {
+    /// The call is not allowed in the current lifecycle state.
+    #[error("{call} is not allowed in state {state:?}")]
+    IllegalCall {
+        /// The function called.
+        call: &'static str,
+        /// The state it was called in.
+        state: LifecycleState,
+    },
+    /// A value was rejected.
+    #[error(transparent)]
+    Invalid(#[from] ParamError),
+    /// No variable has this value reference (or it has another type).
+    #[error("no {kind} variable with value reference {vr}")]
+    UnknownReference {
+        /// The value reference.
+        vr: u32,
+        /// The expected type.
+        kind: &'static str,
+    },
+    /// The variable cannot be set in this state (or never).
+    #[error("variable {name} (vr {vr}) cannot be set in state {state:?}")]
+    NotSettable {
+        /// Variable name.
+        name: &'static str,
+        /// Value reference.
+        vr: u32,
+        /// State.
+        state: LifecycleState,
+    },
+    /// Wrong number of values for the value references.
+    #[error("{got} values given for value references needing {expected}")]
+    WrongCount {
+        /// Values expected.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
+    /// A serialized state could not be decoded.
+    #[error("invalid serialized state: {0}")]
+    BadState(String),
+}
+
+/// Result of `do_step` (FMI `fmi3OK`, `fmi3Discard`, `fmi3Error`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum StepStatus {
+    /// The step was completed.
+    Ok,
+    /// The step could not be completed; the state is that at `last_successful_time`.
+    Discard {
+        /// Time of the current (rolled back) state, s.
+        last_successful_time: f64,
+        /// Why.
+        reason: String,
+    },
+    /// The call failed; the slave is in the Error state.
+    Error(SlaveError),
+}
+
+/// Actuation requested through the inputs, applied at the next `do_step`.
+#[derive(Debug, Clone, PartialEq)]
+struct Inputs {
+    mode: u64,
+    wave: Wave,
+    field: Vec<f64>,
+    dirty: bool,
+}
+
+/// A plant instance with an FMI-style interface.
+#[derive(Debug, Clone)]
+pub struct Slave {
+    instance_name: String,
+    params: PlantParams,
+    original: PlantParams,
+    state: LifecycleState,
+    plant: Plant,
+    inputs: Inputs,
+    start_time: f64,
+    stop_time: Option<f64>,
+}
+
+const STATE_MAGIC: &[u8; 8] = b"CRWLSTAT";
+const STATE_VERSION: u32 = 1;
+
+impl Slave {
+    /// `fmi3InstantiateCoSimulation`: validates the parameters and allocates the plant.
+    pub fn instantiate(instance_name: &str, params: PlantParams) -> Result<Self, SlaveError> {
+        let plant = Plant::new(params, 0.0)?;
+        Ok(Self {
+            instance_name: instance_name.to_string(),
+            params,
+            original: params,
+            state: LifecycleState::Instantiated,
+            inputs: Inputs {
+                mode: 0,
+                wave: Wave {
+                    f0: 0.0,
+                    k: std::f64::consts::TAU / params.length,
+                    omega: 1.0,
+                    phase: 0.0,
+                },
+                field: vec![0.0; params.numerics.cells],
+                dirty: false,
+            },
+            plant,
+            start_time: 0.0,
+            stop_time: None,
+        })
+    }
+
+    /// Instance name.
+    pub fn instance_name(&self) -> &str {
+        &self.instance_name
+    }
+
+    /// Lifecycle state.
+    pub fn lifecycle(&self) -> LifecycleState {
+        self.state
+    }
+
+    /// The plant (read-only).
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// Current parameters.
+    pub fn params(&self) -> &PlantParams {
+        &self.params
+    }
+
+    /// The model description.
+    pub fn model_description(&self) -> ModelDescription {
+        ModelDescription::new(&self.params)
+    }
+
+    fn fail<T>(&mut self, e: SlaveError) -> Result<T, SlaveError> {
+        self.state = LifecycleState::Error;
+        Err(e)
+    }
+
+    fn require(
+        &mut self,
+        call: &'static str,
+        allowed: &[LifecycleState],
+    ) -> Result<(), SlaveError> {
+        if allowed.contains(&self.state) {
+            Ok(())
+        } else {
+            let state = self.state;
+            self.fail(SlaveError::IllegalCall { call, state })
+        }
+    }
+
+    /// `fmi3EnterInitializationMode`: fixes the start (and optional stop) time, s.
+    pub fn enter_initialization_mode(
+        &mut self,
+        start_time: f64,
+        stop_time: Option<f64>,
+    ) -> Result<(), SlaveError> {
+        self.require("enter_initialization_mode", &[LifecycleState::Instantiated])?;
+        if !start_time.is_finite() {
+            return self
+                .fail(ParamError::new("start_time", start_time, "a finite time (s)").into());
+        }
+        if let Some(stop) = stop_time {
+            if !(stop.is_finite() && stop > start_time) {
+                return self.fail(
+                    ParamError::new(
+                        "stop_time",
+                        stop,
+                        format!("a finite time > start_time = {start_time}"),
+                    )
+                    .into(),
+                );
+            }
+        }
+        match Plant::new(self.params, start_time) {
+            Ok(p) => self.plant = p,
+            Err(e) => return self.fail(e.into()),
+        }
+        self.start_time = start_time;
+        self.stop_time = stop_time;
+        self.state = LifecycleState::InitializationMode;
+        Ok(())
+    }
+
+    /// `fmi3ExitInitializationMode`: applies the inputs and enters step mode.
+    pub fn exit_initialization_mode(&mut self) -> Result<(), SlaveError> {
+        self.require(
+            "exit_initialization_mode",
+            &[LifecycleState::InitializationMode],
+        )?;
+        if let Err(e) = self.apply_inputs() {
+            return self.fail(e);
+        }
+        self.state = LifecycleState::StepMode;
+        Ok(())
+    }
+
+    /// `fmi3Terminate`.
+    pub fn terminate(&mut self) -> Result<(), SlaveError> {
+        self.require("terminate", &[LifecycleState::StepMode])?;
+        self.state = LifecycleState::Terminated;
+        Ok(())
+    }
+
+    /// `fmi3Reset`: back to Instantiated with the parameters given at instantiation.
+    pub fn reset(&mut self) -> Result<(), SlaveError> {
+        let fresh = Self::instantiate(&self.instance_name, self.original)?;
+        *self = fresh;
+        Ok(())
+    }
+
+    /// Sets the actuation to apply from the next step on (typed form of the input variables).
+    pub fn set_wave(&mut self, wave: Wave) -> Result<(), SlaveError> {
+        self.require(
+            "set_wave",
+            &[LifecycleState::InitializationMode, LifecycleState::StepMode],
+        )?;
+        if let Err(e) = wave.validate_for_body(self.params.length, self.params.numerics.cells) {
+            return self.fail(e.into());
+        }
+        self.inputs.mode = 1;
+        self.inputs.wave = wave;
+        self.inputs.dirty = true;
+        Ok(())
+    }
+
+    /// Sets a muscle-force field (N at the half nodes) to hold from the next step on.
+    pub fn set_field(&mut self, field: &[f64]) -> Result<(), SlaveError> {
+        self.require(
+            "set_field",
+            &[LifecycleState::InitializationMode, LifecycleState::StepMode],
+        )?;
+        if field.len() != self.params.numerics.cells {
+            let e = ParamError::new(
+                "muscle_force",
+                format!("{} values", field.len()),
+                format!("exactly {} values", self.params.numerics.cells),
+            );
+            return self.fail(e.into());
+        }
+        if let Some((i, x)) = field.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+            return self.fail(
+                ParamError::new(format!("muscle_force[{i}]"), x, "finite numbers (N)").into(),
+            );
+        }
+        self.inputs.mode = 2;
+        self.inputs.field.copy_from_slice(field);
+        self.inputs.dirty = true;
+        Ok(())
+    }
+
+    fn apply_inputs(&mut self) -> Result<(), SlaveError> {
+        if !self.inputs.dirty {
+            return Ok(());
+        }
+        self.inputs.dirty = false;
+        match self.inputs.mode {
+            0 => Ok(()),
+            1 => Ok(self.plant.set_wave(self.inputs.wave)?),
+            _ => Ok(self.plant.set_field(&self.inputs.field)?),
+        }
+    }
+
+    /// `fmi3DoStep` from `current_time` (must equal the slave's time) over `h` seconds, a
+    /// whole number of communication steps `H`.
+    pub fn do_step(&mut self, current_time: f64, h: f64) -> StepStatus {
+        if let Err(e) = self.require("do_step", &[LifecycleState::StepMode]) {
+            return StepStatus::Error(e);
+        }
+        let now = self.plant.time();
+        let step = self.params.numerics.step;
+        if !current_time.is_finite() || (current_time - now).abs() > 1e-9 * step {
+            let e = ParamError::new(
+                "current_time",
+                current_time,
+                format!("the slave's time {now} s"),
+            );
+            return StepStatus::Error(self.fail::<()>(e.into()).unwrap_err());
+        }
+        let n = (h / step).round();
+        if !(h.is_finite() && h > 0.0 && n >= 1.0 && (h - n * step).abs() <= 1e-9 * h) {
+            return StepStatus::Discard {
+                last_successful_time: now,
+                reason: format!(
+                    "h = {h} s is not a whole number of communication steps H = {step} s \
+                     (each H is {} internal steps of dt = {:e} s, the CFL-limited step)",
+                    self.plant.discretisation().substeps,
+                    self.plant.discretisation().dt
+                ),
+            };
+        }
+        if let Some(stop) = self.stop_time {
+            if now + h > stop + 1e-9 * step {
+                let e = ParamError::new(
+                    "h",
+                    h,
+                    format!("a step ending at or before stop_time = {stop} s"),
+                );
+                return StepStatus::Error(self.fail::<()>(e.into()).unwrap_err());
+            }
+        }
+        if let Err(e) = self.apply_inputs() {
+            return StepStatus::Error(self.fail::<()>(e).unwrap_err());
+        }
+        for _ in 0..n as u64 {
+            if let Err(StepError::NonFinite {
+                time,
+                last_successful_time,
+            }) = self.plant.advance()
+            {
+                return StepStatus::Discard {
+                    last_successful_time,
+                    reason: format!(
+                        "the state became non-finite at t = {time} s (actuation too large?)"
+                    ),
+                };
+            }
+        }
+        StepStatus::Ok
+    }
+
+    fn settable(&self, vr: u32) -> bool {
+        use LifecycleState::*;
+        let params = matches!(self.state, Instantiated | InitializationMode);
+        let inputs = matches!(self.state, InitializationMode | StepMode);
+        match vr {
+            vr::AREA..=vr::BLOCK => params,
+            vr::ACTUATION_MODE..=vr::MUSCLE_FORCE => inputs,
+            _ => false,
+        }
+    }
+
+    /// `fmi3GetFloat64`: values of the variables in order, arrays flattened.
+    pub fn get_float64(&self, vrs: &[u32]) -> Result<Vec<f64>, SlaveError> {
+        let mut out = Vec::new();
+        let p = &self.params;
+        let d = self.plant.discretisation();
+        let steady = self.plant.steady_metrics();
+        let metric = |f: fn(&crate::metrics::Metrics) -> f64| steady.as_ref().map_or(f64::NAN, f);
+        for &r in vrs {
+            match r {
+                vr::TIME => out.push(self.plant.time()),
+                vr::LENGTH => out.push(p.length),
+                vr::AREA => out.push(p.body.area),
+                vr::DENSITY => out.push(p.body.density),
+                vr::YOUNGS_MODULUS => out.push(p.body.youngs_modulus),
+                vr::VISCOUS => out.push(p.friction.viscous),
+                vr::DRY => out.push(p.friction.dry),
+                vr::EPS => out.push(p.friction.eps),
+                vr::N_F => out.push(p.friction.n_f),
+                vr::COURANT => out.push(p.numerics.courant),
+                vr::STEP => out.push(p.numerics.step),
+                vr::SETTLE => out.push(p.numerics.settle),
+                vr::MIN_STICK => out.push(p.numerics.min_stick),
+                vr::BLOCK => out.push(p.numerics.block),
+                vr::DT => out.push(d.dt),
+                vr::DX => out.push(d.dx),
+                vr::WAVE_SPEED => out.push(p.body.wave_speed()),
+                vr::WAVE_F0 => out.push(self.inputs.wave.f0),
+                vr::WAVE_K => out.push(self.inputs.wave.k),
+                vr::WAVE_OMEGA => out.push(self.inputs.wave.omega),
+                vr::WAVE_PHASE => out.push(self.inputs.wave.phase),
+                vr::MUSCLE_FORCE => out.extend_from_slice(&self.inputs.field),
+                vr::U => out.extend_from_slice(self.plant.displacement()),
+                vr::V => out.extend_from_slice(self.plant.velocity()),
+                vr::TENSION => out.extend(self.plant.tension()),
+                vr::MEAN_SPEED => out.push(self.plant.outputs().mean_speed),
+                vr::INPUT_POWER => out.push(self.plant.outputs().input_power),
+                vr::VELOCITY => out.push(metric(|m| m.velocity)),
+                vr::POWER => out.push(metric(|m| m.power)),
+                vr::MILEAGE => out.push(metric(|m| m.mileage)),
+                vr::MAX_STRESS => out.push(metric(|m| m.max_stress)),
+                vr::MAX_STRAIN => out.push(metric(|m| m.max_strain)),
+                vr::STUCK_FRACTION => out.push(metric(|m| m.stuck_fraction)),
+                vr::MEAN_FRICTION_SELECTION => out.push(metric(|m| m.mean_friction_selection)),
+                vr::STEADY_PERIODS => out.push(metric(|m| m.periods)),
+                vr::EPISODE_RATE => out.push(metric(|m| m.episodes_per_node_per_period)),
+                _ => {
+                    return Err(SlaveError::UnknownReference {
+                        vr: r,
+                        kind: "Float64",
+                    })
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// `fmi3GetUInt64`.
+    pub fn get_uint64(&self, vrs: &[u32]) -> Result<Vec<u64>, SlaveError> {
+        vrs.iter()
+            .map(|&r| match r {
+                vr::CELLS => Ok(self.params.numerics.cells as u64),
+                vr::SUBSTEPS => Ok(self.plant.discretisation().substeps),
+                vr::ACTUATION_MODE => Ok(self.inputs.mode),
+                vr::STUCK_NODES => Ok(self.plant.outputs().stuck_nodes),
+                _ => Err(SlaveError::UnknownReference {
+                    vr: r,
+                    kind: "UInt64",
+                }),
+            })
+            .collect()
+    }
+
+    /// `fmi3GetBoolean` (arrays flattened).
+    pub fn get_boolean(&self, vrs: &[u32]) -> Result<Vec<bool>, SlaveError> {
+        let mut out = Vec::new();
+        for &r in vrs {
+            match r {
+                vr::STUCK => out.extend_from_slice(self.plant.stuck()),
+                _ => {
+                    return Err(SlaveError::UnknownReference {
+                        vr: r,
+                        kind: "Boolean",
+                    })
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// `fmi3SetUInt64` (the actuation mode).
+    pub fn set_uint64(&mut self, vrs: &[u32], values: &[u64]) -> Result<(), SlaveError> {
+        if vrs.len() != values.len() {
+            return self.fail(SlaveError::WrongCount {
+                expected: vrs.len(),
+                got: values.len(),
+            });
+        }
+        for (&r, &x) in vrs.iter().zip(values) {
+            match r {
+                vr::ACTUATION_MODE if self.settable(r) => {
+                    if x > 2 {
+                        return self.fail(
+                            ParamError::new("actuation_mode", x, "0 (none), 1 (wave) or 2 (field)")
+                                .into(),
+                        );
+                    }
+                    self.inputs.mode = x;
+                    self.inputs.dirty = true;
+                }
+                vr::ACTUATION_MODE | vr::CELLS | vr::SUBSTEPS | vr::STUCK_NODES => {
+                    let state = self.state;
+                    let name = if r == vr::CELLS {
+                        "cells"
+                    } else {
+                        "uint64 variable"
+                    };
+                    return self.fail(SlaveError::NotSettable { name, vr: r, state });
+                }
+                _ => {
+                    return self.fail(SlaveError::UnknownReference {
+                        vr: r,
+                        kind: "UInt64",
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `fmi3SetFloat64`: parameters (before step mode) and inputs; arrays take `cells` values.
+    pub fn set_float64(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), SlaveError> {
+        let n = self.params.numerics.cells;
+        let expected: usize = vrs
+            .iter()
+            .map(|&r| if r == vr::MUSCLE_FORCE { n } else { 1 })
+            .sum();
+        if expected != values.len() {
+            return self.fail(SlaveError::WrongCount {
+                expected,
+                got: values.len(),
+            });
+        }
+        let mut params = self.params;
+        let mut inputs = self.inputs.clone();
+        let mut rest = values;
+        let md = self.model_description();
+        for &r in vrs {
+            let Some(var) = md.variable(r).cloned() else {
+                return self.fail(SlaveError::UnknownReference {
+                    vr: r,
+                    kind: "Float64",
+                });
+            };
+            if !self.settable(r) {
+                let state = self.state;
+                return self.fail(SlaveError::NotSettable {
+                    name: var.name,
+                    vr: r,
+                    state,
+                });
+            }
+            let take = if r == vr::MUSCLE_FORCE { n } else { 1 };
+            let (now, later) = rest.split_at(take);
+            rest = later;
+            let x = now[0];
+            match r {
+                vr::AREA => params.body.area = x,
+                vr::DENSITY => params.body.density = x,
+                vr::YOUNGS_MODULUS => params.body.youngs_modulus = x,
+                vr::VISCOUS => params.friction.viscous = x,
+                vr::DRY => params.friction.dry = x,
+                vr::EPS => params.friction.eps = x,
+                vr::N_F => params.friction.n_f = x,
+                vr::COURANT => params.numerics.courant = x,
+                vr::STEP => params.numerics.step = x,
+                vr::SETTLE => params.numerics.settle = x,
+                vr::MIN_STICK => params.numerics.min_stick = x,
+                vr::BLOCK => params.numerics.block = x,
+                vr::WAVE_F0 => inputs.wave.f0 = x,
+                vr::WAVE_K => inputs.wave.k = x,
+                vr::WAVE_OMEGA => inputs.wave.omega = x,
+                vr::WAVE_PHASE => inputs.wave.phase = x,
+                vr::MUSCLE_FORCE => {
+                    if let Some((i, x)) = now.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                        return self.fail(
+                            ParamError::new(format!("muscle_force[{i}]"), x, "finite numbers (N)")
+                                .into(),
+                        );
+                    }
+                    inputs.field.copy_from_slice(now);
+                }
+                _ => {
+                    let state = self.state;
+                    return self.fail(SlaveError::NotSettable {
+                        name: var.name,
+                        vr: r,
+                        state,
+                    });
+                }
+            }
+            if (vr::WAVE_F0..=vr::MUSCLE_FORCE).contains(&r) {
+                inputs.dirty = true;
+            }
+        }
+        if params != self.params {
+            if let Err(e) = params.validate() {
+                return self.fail(e.into());
+            }
+            match Plant::new(params, self.plant.start_time()) {
+                Ok(p) => self.plant = p,
+                Err(e) => return self.fail(e.into()),
+            }
+            self.params = params;
+        }
+        if inputs.dirty && inputs.mode == 1 {
+            if let Err(e) = inputs.wave.validate() {
+                return self.fail(e.into());
+            }
+        }
+        self.inputs = inputs;
+        Ok(())
+    }
+
+    /// `fmi3GetFMUState`: a copy of the complete state.
+    pub fn get_state(&self) -> PlantState {
+        self.plant.state()
+    }
+
+    /// `fmi3SetFMUState`: restores a state of this plant (also leaves the Error state).
+    pub fn set_state(&mut self, state: &PlantState) -> Result<(), SlaveError> {
+        self.plant.set_state(state)?;
+        self.inputs.dirty = false;
+        match state.drive {
+            Drive::Wave(w) => {
+                self.inputs.mode = 1;
+                self.inputs.wave = w;
+            }
+            Drive::Field => {
+                self.inputs.mode = 2;
+                self.inputs.field.clone_from(&state.field);
+            }
+            Drive::Idle => self.inputs.mode = 0,
+        }
+        if matches!(
+            self.state,
+            LifecycleState::Error | LifecycleState::Terminated
+        ) {
+            self.state = LifecycleState::StepMode;
+        }
+        Ok(())
+    }
+
+    /// `fmi3SerializeFMUState`: bytes `CRWLSTAT`, format version (u32 LE), CRC-32 of the
+    /// payload (u32 LE), payload (MessagePack of [`PlantState`]).
+    pub fn serialize_state(state: &PlantState) -> Vec<u8> {
+        let payload = rmp_serde::to_vec_named(state).expect("plant state serializes");
+        let mut out = Vec::with_capacity(payload.len() + 16);
+        out.extend_from_slice(STATE_MAGIC);
+        out.extend_from_slice(&STATE_VERSION.to_le_bytes());
+        out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+        out.extend_from_slice(&payload);
+        out
+    }
+
+    /// `fmi3DeserializeFMUState`: checks magic, version and checksum; values are validated when
+    /// the state is set.
+    pub fn deserialize_state(bytes: &[u8]) -> Result<PlantState, SlaveError> {
+        if bytes.len() < 16 || &bytes[..8] != STATE_MAGIC {
+            return Err(SlaveError::BadState(
+                "not a crawler plant state (magic bytes CRWLSTAT missing)".into(),
+            ));
+        }
+        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+        if version != STATE_VERSION {
+            return Err(SlaveError::BadState(format!(
+                "format version {version}, this build reads {STATE_VERSION}"
+            )));
+        }
+        let crc = u32::from_le_bytes(bytes[12..16].try_into().unwrap());
+        let payload = &bytes[16..];
+        if crc32fast::hash(payload) != crc {
+            return Err(SlaveError::BadState(
+                "checksum mismatch (truncated or corrupted)".into(),
+            ));
+        }
+        let state: PlantState =
+            rmp_serde::from_slice(payload).map_err(|e| SlaveError::BadState(e.to_string()))?;
+        state
+            .params
+            .validate()
+            .map_err(|e| SlaveError::BadState(e.to_string()))?;
+        Ok(state)
+    }
+}

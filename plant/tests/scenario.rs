@@ -1,0 +1,161 @@
+//! Scenario files and overrides: every bad input gets a clear error, never a panic.
+
+use crawler_plant::scenario::{Overrides, Scenario, ScenarioError, PAPER_TOML};
+
+fn load(text: &str) -> Result<Scenario, ScenarioError> {
+    Scenario::from_toml(text, "test.toml", &Overrides::default())
+}
+
+#[test]
+fn the_paper_scenario_has_the_papers_parameters() {
+    let s = Scenario::paper();
+    assert_eq!(s.plant.body.stiffness(), 14.0);
+    assert!((s.plant.body.wave_speed() - 11.832).abs() < 1e-3);
+    assert!((s.natural_frequency() - 74.34).abs() < 0.01);
+    assert_eq!(s.wave.f0, 0.5);
+    assert_eq!(s.plant.friction.n_f, 0.5);
+    assert!((s.plant.length - 1.0).abs() < 1e-15);
+}
+
+#[test]
+fn unknown_keys_and_wrong_types_name_the_line() {
+    let text = PAPER_TOML.replace("eps = 0.1 ", "eps = 0.1\nfoo = 3 ");
+    let e = load(&text).unwrap_err().to_string();
+    assert!(e.contains("foo") && e.contains("line"), "{e}");
+    let text = PAPER_TOML.replace("cells = 128", "cells = \"many\"");
+    let e = load(&text).unwrap_err().to_string();
+    assert!(e.contains("line") && e.contains("cells"), "{e}");
+}
+
+#[test]
+fn invalid_values_name_field_value_and_range() {
+    let cases = [
+        (
+            Overrides {
+                n_f: Some(1.5),
+                ..Default::default()
+            },
+            "friction.n_f",
+            "1.5",
+        ),
+        (
+            Overrides {
+                eps: Some(-0.1),
+                ..Default::default()
+            },
+            "friction.eps",
+            "-0.1",
+        ),
+        (
+            Overrides {
+                eps: Some(f64::NAN),
+                ..Default::default()
+            },
+            "friction.eps",
+            "NaN",
+        ),
+        (
+            Overrides {
+                f0: Some(f64::INFINITY),
+                ..Default::default()
+            },
+            "actuation.f0",
+            "inf",
+        ),
+        (
+            Overrides {
+                k: Some(-1.0),
+                ..Default::default()
+            },
+            "actuation.k",
+            "-1",
+        ),
+        (
+            Overrides {
+                alpha: Some(0.0),
+                ..Default::default()
+            },
+            "actuation.alpha",
+            "0",
+        ),
+        (
+            Overrides {
+                omega: Some(-3.0),
+                ..Default::default()
+            },
+            "actuation.omega",
+            "-3",
+        ),
+        (
+            Overrides {
+                cells: Some(3),
+                ..Default::default()
+            },
+            "numerics.cells",
+            "3",
+        ),
+        (
+            Overrides {
+                cells: Some(-5),
+                ..Default::default()
+            },
+            "numerics.cells",
+            "-5",
+        ),
+        (
+            Overrides {
+                t_end: Some(0.0),
+                ..Default::default()
+            },
+            "numerics.t_end",
+            "0",
+        ),
+    ];
+    for (o, field, value) in cases {
+        let e = Scenario::load(None, &o).unwrap_err().to_string();
+        assert!(
+            e.contains(field) && e.contains(value) && e.contains("allowed"),
+            "{field}: {e}"
+        );
+    }
+    let e = Scenario::load(
+        None,
+        &Overrides {
+            omega: Some(3.0),
+            alpha: Some(1.0),
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("omega"), "{e}");
+}
+
+#[test]
+fn a_wave_that_does_not_fit_an_explicit_body_is_refused() {
+    let text = PAPER_TOML
+        .replace("# length = 1.0", "length = 1.0")
+        .replace("k = 6.283185307179586", "k = 9.42477796076938");
+    let e = load(&text).unwrap_err().to_string();
+    assert!(e.contains("wave.k") && e.contains("whole number"), "{e}");
+}
+
+#[test]
+fn inverted_limits_are_refused() {
+    let text = PAPER_TOML.replace("omega = [10.0, 300.0]", "omega = [300.0, 10.0]");
+    let e = load(&text).unwrap_err().to_string();
+    assert!(e.contains("limits.omega"), "{e}");
+}
+
+#[test]
+fn garbage_never_panics() {
+    for text in [
+        "",
+        "[[[",
+        "body = 3",
+        "\u{0}\u{1}",
+        "[body]\narea = 1e999",
+        &PAPER_TOML[..PAPER_TOML.find("alpha = 1.0").unwrap() + 7],
+    ] {
+        assert!(load(text).is_err());
+    }
+}

@@ -1,0 +1,301 @@
+//! The FMI-style slave: lifecycle, value references, checkpoint/restore, bad input.
+
+mod common;
+
+use common::paper;
+use crawler_plant::model_description::vr;
+use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_plant::slave::{LifecycleState, Slave, SlaveError, StepStatus};
+use crawler_plant::wave::Wave;
+
+fn stick_slip() -> Scenario {
+    let mut s = paper(Overrides {
+        eps: Some(1.0),
+        f0: Some(0.2),
+        alpha: Some(0.5),
+        t_end: Some(3.0),
+        ..Default::default()
+    });
+    s.plant.numerics.settle = 1.0;
+    s
+}
+
+fn started(s: &Scenario) -> Slave {
+    let mut slave = Slave::instantiate("test", s.plant).unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    slave.set_wave(s.wave).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    slave
+}
+
+fn steps(slave: &mut Slave, n: u64) {
+    let h = slave.params().numerics.step;
+    for _ in 0..n {
+        let t = slave.plant().time();
+        assert_eq!(slave.do_step(t, h), StepStatus::Ok);
+    }
+}
+
+#[test]
+fn checkpoint_restore_and_continue_is_bit_identical() {
+    let s = stick_slip();
+    let mut straight = started(&s);
+    steps(&mut straight, 3000);
+
+    let mut first = started(&s);
+    steps(&mut first, 1234);
+    let bytes = Slave::serialize_state(&first.get_state());
+    drop(first);
+    let state = Slave::deserialize_state(&bytes).unwrap();
+    let mut resumed = Slave::instantiate("resumed", state.params).unwrap();
+    resumed.enter_initialization_mode(0.0, None).unwrap();
+    resumed.exit_initialization_mode().unwrap();
+    resumed.set_state(&state).unwrap();
+    steps(&mut resumed, 3000 - 1234);
+
+    let (a, b) = (straight.get_state(), resumed.get_state());
+    assert!(
+        a.u.iter()
+            .zip(&b.u)
+            .all(|(x, y)| x.to_bits() == y.to_bits()),
+        "u differs"
+    );
+    assert!(
+        a.v.iter()
+            .zip(&b.v)
+            .all(|(x, y)| x.to_bits() == y.to_bits()),
+        "v differs"
+    );
+    assert_eq!(a, b, "full state differs");
+    let (ma, mb) = (
+        straight.plant().steady_metrics().unwrap(),
+        resumed.plant().steady_metrics().unwrap(),
+    );
+    assert_eq!(ma.velocity.to_bits(), mb.velocity.to_bits());
+    assert_eq!(ma.episodes, mb.episodes);
+}
+
+#[test]
+fn in_memory_state_rolls_back() {
+    let s = stick_slip();
+    let mut slave = started(&s);
+    steps(&mut slave, 100);
+    let saved = slave.get_state();
+    let u100 = slave.plant().displacement().to_vec();
+    steps(&mut slave, 50);
+    assert_ne!(slave.plant().displacement(), &u100[..]);
+    slave.set_state(&saved).unwrap();
+    assert_eq!(slave.plant().displacement(), &u100[..]);
+    assert_eq!(slave.plant().macro_step(), 100);
+}
+
+#[test]
+fn corrupted_or_foreign_states_are_refused() {
+    let s = stick_slip();
+    let mut slave = started(&s);
+    steps(&mut slave, 10);
+    let bytes = Slave::serialize_state(&slave.get_state());
+    assert!(
+        Slave::deserialize_state(&bytes[..bytes.len() - 3]).is_err(),
+        "truncated"
+    );
+    let mut flipped = bytes.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 1;
+    assert!(Slave::deserialize_state(&flipped).is_err(), "bit flip");
+    assert!(Slave::deserialize_state(b"garbage").is_err());
+    let mut other = s.clone();
+    other.plant.numerics.cells = 64;
+    let mut foreign = started(&other);
+    assert!(matches!(
+        foreign.set_state(&slave.get_state()),
+        Err(SlaveError::Invalid(_))
+    ));
+    let mut nan = slave.get_state();
+    nan.u[3] = f64::NAN;
+    let err = slave.set_state(&nan).unwrap_err().to_string();
+    assert!(err.contains("state.u[3]"), "{err}");
+}
+
+#[test]
+fn illegal_lifecycle_calls_are_refused() {
+    let s = stick_slip();
+    let mut slave = Slave::instantiate("x", s.plant).unwrap();
+    assert!(matches!(
+        slave.do_step(0.0, 1e-3),
+        StepStatus::Error(SlaveError::IllegalCall { .. })
+    ));
+    assert_eq!(slave.lifecycle(), LifecycleState::Error);
+    slave.reset().unwrap();
+    assert_eq!(slave.lifecycle(), LifecycleState::Instantiated);
+    assert!(matches!(
+        slave.exit_initialization_mode(),
+        Err(SlaveError::IllegalCall { .. })
+    ));
+    slave.reset().unwrap();
+    assert!(matches!(
+        slave.terminate(),
+        Err(SlaveError::IllegalCall { .. })
+    ));
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
+    assert!(matches!(
+        slave.enter_initialization_mode(0.0, None),
+        Err(SlaveError::IllegalCall { .. })
+    ));
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
+    slave.set_wave(s.wave).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    // wrong current time
+    assert!(matches!(slave.do_step(0.5, 1e-3), StepStatus::Error(_)));
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    // parameters are fixed in step mode
+    assert!(matches!(
+        slave.set_float64(&[vr::EPS], &[0.3]),
+        Err(SlaveError::NotSettable { .. })
+    ));
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    // not a whole number of communication steps: discarded, state unchanged
+    assert!(
+        matches!(slave.do_step(0.0, 1.5e-3), StepStatus::Discard { last_successful_time, .. } if last_successful_time == 0.0)
+    );
+    assert_eq!(slave.do_step(0.0, 2e-3), StepStatus::Ok);
+    // beyond the stop time
+    assert!(matches!(slave.do_step(2e-3, 1e-2), StepStatus::Error(_)));
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    slave.terminate().unwrap();
+    assert!(matches!(
+        slave.do_step(0.0, 1e-3),
+        StepStatus::Error(SlaveError::IllegalCall { .. })
+    ));
+}
+
+#[test]
+fn value_references_read_and_write() {
+    let s = stick_slip();
+    let mut slave = Slave::instantiate("vr", s.plant).unwrap();
+    slave
+        .set_float64(&[vr::EPS, vr::N_F], &[0.7, 0.25])
+        .unwrap();
+    assert_eq!(
+        slave.get_float64(&[vr::EPS, vr::N_F]).unwrap(),
+        vec![0.7, 0.25]
+    );
+    assert!(matches!(
+        slave.set_float64(&[vr::N_F], &[1.5]),
+        Err(SlaveError::Invalid(_))
+    ));
+    slave.reset().unwrap();
+    assert!(matches!(
+        slave.set_float64(&[9999], &[1.0]),
+        Err(SlaveError::UnknownReference { .. })
+    ));
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    slave.set_uint64(&[vr::ACTUATION_MODE], &[1]).unwrap();
+    slave
+        .set_float64(
+            &[vr::WAVE_F0, vr::WAVE_K, vr::WAVE_OMEGA, vr::WAVE_PHASE],
+            &[s.wave.f0, s.wave.k, s.wave.omega, 0.0],
+        )
+        .unwrap();
+    slave.exit_initialization_mode().unwrap();
+    assert_eq!(slave.do_step(0.0, 1e-3), StepStatus::Ok);
+    let n = s.plant.numerics.cells;
+    assert_eq!(
+        slave
+            .get_float64(&[vr::U, vr::V, vr::TENSION])
+            .unwrap()
+            .len(),
+        3 * n
+    );
+    assert_eq!(slave.get_boolean(&[vr::STUCK]).unwrap().len(), n);
+    assert_eq!(slave.get_uint64(&[vr::CELLS]).unwrap(), vec![n as u64]);
+    // the same wave through the typed call gives the same trajectory
+    let mut typed = started(&s);
+    assert_eq!(typed.do_step(0.0, 1e-3), StepStatus::Ok);
+    assert_eq!(typed.plant().displacement(), slave.plant().displacement());
+    // field input of the wrong size is refused
+    slave.set_uint64(&[vr::ACTUATION_MODE], &[2]).unwrap();
+    assert!(matches!(
+        slave.set_float64(&[vr::MUSCLE_FORCE], &[1.0; 3]),
+        Err(SlaveError::WrongCount { .. })
+    ));
+}
+
+#[test]
+fn model_description_lists_every_variable_once() {
+    let s = stick_slip();
+    let slave = Slave::instantiate("md", s.plant).unwrap();
+    let md = slave.model_description();
+    let mut refs: Vec<u32> = md.variables.iter().map(|v| v.value_reference).collect();
+    refs.sort_unstable();
+    let len = refs.len();
+    refs.dedup();
+    assert_eq!(refs.len(), len, "duplicate value references");
+    let xml = md.to_xml();
+    assert!(xml.contains("fmiVersion=\"3.0\""));
+    assert_eq!(
+        xml.matches("valueReference=").count()
+            - md.variables.iter().filter(|v| v.size.is_some()).count()
+            - md.variables
+                .iter()
+                .filter(|v| v.causality == crawler_plant::model_description::Causality::Output)
+                .count(),
+        len
+    );
+    let json: serde_json::Value = serde_json::from_str(&md.to_json()).unwrap();
+    assert_eq!(json["variables"].as_array().unwrap().len(), len);
+}
+
+#[test]
+fn waves_that_do_not_fit_the_body_are_refused() {
+    let s = stick_slip();
+    let mut slave = Slave::instantiate("fit", s.plant).unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    let bad = Wave {
+        k: 1.5 * s.wave.k,
+        ..s.wave
+    };
+    let err = slave.set_wave(bad).unwrap_err().to_string();
+    assert!(
+        err.contains("wave.k") && err.contains("whole number"),
+        "{err}"
+    );
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    let twice = Wave {
+        k: 2.0 * s.wave.k,
+        ..s.wave
+    };
+    slave.set_wave(twice).unwrap();
+}
+
+#[test]
+fn huge_actuation_is_discarded_and_rolled_back() {
+    let s = stick_slip();
+    let mut slave = started(&s);
+    steps(&mut slave, 5);
+    let before = slave.get_state();
+    // only the gradient of the muscle force pushes: alternate signs to make it overflow
+    let field: Vec<f64> = (0..s.plant.numerics.cells)
+        .map(|i| if i % 2 == 0 { 1e308 } else { -1e308 })
+        .collect();
+    slave.set_field(&field).unwrap();
+    match slave.do_step(slave.plant().time(), 1e-3) {
+        StepStatus::Discard {
+            last_successful_time,
+            ..
+        } => assert!((last_successful_time - 5e-3).abs() < 1e-15),
+        other => panic!("expected a discard, got {other:?}"),
+    }
+    assert_eq!(slave.get_state().u, before.u);
+    assert!(slave.plant().displacement().iter().all(|x| x.is_finite()));
+}
