@@ -1,1 +1,12 @@
-//! placeholder
+//! # crawler-bridge
+//!
+//! Records a soft-crawler co-simulation run into a Rerun `.rrd` file. It depends only on the wire
+//! protocol: zenoh callbacks push raw payloads into a bounded channel (never blocking the
+//! publishers) and a writer decodes them and logs them in step order, decimating the fields when
+//! it falls behind (and saying so in the recording).
+
+pub mod layout;
+pub mod paths;
+pub mod recorder;
+
+pub use recorder::{Counts, Incoming, Recorder, RecorderOptions};

@@ -1,1 +1,250 @@
-fn main() {}
+//! `crawler-bridge record`: subscribe to a run and write a Rerun recording.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::{Args, Parser, Subcommand};
+use crossbeam_channel::{bounded, Sender};
+use zenoh::Wait;
+
+use crawler_bridge::{Incoming, Recorder, RecorderOptions};
+use crawler_protocol::{decode, ModelInfo, Role, RunKeys};
+
+#[derive(Parser)]
+#[command(
+    name = "crawler-bridge",
+    version,
+    about = "Records a soft-crawler co-simulation into a Rerun .rrd file"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Subscribe to a run (before or after it starts) and record it until it ends.
+    Record(RecordArgs),
+}
+
+#[derive(Args)]
+struct RecordArgs {
+    #[command(flatten)]
+    network: crawler_transport::NetworkArgs,
+    /// Output file.
+    #[arg(long, value_name = "FILE.rrd", default_value = "crawler.rrd")]
+    out: PathBuf,
+    /// Record the fields of every K-th step (metrics, events and lanes: always).
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    every: u64,
+    /// Most stick/slip lanes (evenly spaced nodes).
+    #[arg(long, default_value_t = 64)]
+    lanes: usize,
+    /// Recorded steps per heatmap block.
+    #[arg(long, default_value_t = 128)]
+    heatmap_rows: usize,
+    /// Capacity of the inbox between the zenoh callbacks and the writer, messages.
+    #[arg(long, default_value_t = 4096)]
+    inbox: usize,
+    /// Give up if no message arrives for this many seconds (default: wait as long as it takes).
+    #[arg(long)]
+    idle_timeout: Option<f64>,
+}
+
+fn main() -> ExitCode {
+    crawler_transport::ensure_cpu_features();
+    let Command::Record(a) = Cli::parse().command;
+    match record(a) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("crawler-bridge: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn subscribe(
+    session: &zenoh::Session,
+    key: String,
+    tx: Sender<Incoming>,
+    dropped: Arc<AtomicU64>,
+    wrap: fn(Vec<u8>) -> Incoming,
+) -> anyhow::Result<zenoh::pubsub::Subscriber<()>> {
+    session
+        .declare_subscriber(key)
+        .callback(move |sample| {
+            // Never block the publisher: if the writer is behind, drop and count.
+            if tx
+                .try_send(wrap(sample.payload().to_bytes().into_owned()))
+                .is_err()
+            {
+                dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        })
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))
+}
+
+fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        a.every >= 1,
+        "invalid --every = {}: allowed an integer >= 1",
+        a.every
+    );
+    anyhow::ensure!(
+        a.lanes >= 1 && a.lanes <= 4096,
+        "invalid --lanes = {}: allowed 1 to 4096",
+        a.lanes
+    );
+    anyhow::ensure!(
+        a.heatmap_rows >= 1 && a.heatmap_rows <= 65536,
+        "invalid --heatmap-rows = {}: allowed 1 to 65536",
+        a.heatmap_rows
+    );
+    anyhow::ensure!(
+        a.inbox >= 16 && a.inbox <= 1 << 20,
+        "invalid --inbox = {}: allowed 16 to 1048576",
+        a.inbox
+    );
+    if let Some(t) = a.idle_timeout {
+        anyhow::ensure!(
+            t.is_finite() && t > 0.0,
+            "invalid --idle-timeout = {t}: allowed a number of seconds > 0"
+        );
+    }
+    let network = a.network.network()?;
+    let keys = RunKeys::new(&network.run_id)?;
+    let rec = crawler_bridge::recorder::open_file(&a.out)?;
+    let opts = RecorderOptions {
+        every: a.every,
+        lanes: a.lanes,
+        heatmap_rows: a.heatmap_rows,
+        ..Default::default()
+    };
+    let mut recorder = Recorder::new(rec, opts)?;
+
+    let (stop_tx, stop_rx) = bounded::<()>(4);
+    ctrlc::set_handler(move || {
+        let _ = stop_tx.try_send(());
+    })?;
+
+    let session = crawler_transport::open(Role::Bridge, &network)?;
+    let (tx, rx) = bounded::<Incoming>(a.inbox);
+    let dropped = Arc::new(AtomicU64::new(0));
+    let _subs = [
+        subscribe(
+            &session,
+            keys.state(),
+            tx.clone(),
+            dropped.clone(),
+            Incoming::State,
+        )?,
+        subscribe(
+            &session,
+            keys.events(),
+            tx.clone(),
+            dropped.clone(),
+            Incoming::Events,
+        )?,
+        subscribe(
+            &session,
+            keys.metrics(),
+            tx.clone(),
+            dropped.clone(),
+            Incoming::Metrics,
+        )?,
+        subscribe(
+            &session,
+            keys.prediction(),
+            tx.clone(),
+            dropped.clone(),
+            Incoming::Prediction,
+        )?,
+        subscribe(
+            &session,
+            keys.status_all(),
+            tx,
+            dropped.clone(),
+            Incoming::Status,
+        )?,
+    ];
+    let id = crawler_transport::process_id();
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive(Role::Bridge, &id))
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+    eprintln!(
+        "crawler-bridge: recording {} into {}",
+        network.describe(),
+        a.out.display()
+    );
+
+    let mut model_known = false;
+    let mut next_query = Instant::now();
+    let mut last_message = Instant::now();
+    let interrupted = loop {
+        crossbeam_channel::select! {
+            recv(stop_rx) -> _ => break true,
+            recv(rx) -> msg => {
+                if let Ok(msg) = msg {
+                    recorder.handle(msg)?;
+                    last_message = Instant::now();
+                }
+            },
+            default(Duration::from_millis(100)) => {},
+        }
+        recorder.pace(rx.len(), dropped.load(Ordering::Relaxed));
+        recorder.maybe_flush();
+        if recorder.finished() && rx.is_empty() {
+            break false;
+        }
+        if !model_known && Instant::now() >= next_query {
+            next_query = Instant::now() + Duration::from_secs(1);
+            if let Ok(replies) = session
+                .get(keys.model())
+                .timeout(Duration::from_millis(200))
+                .wait()
+            {
+                while let Ok(reply) = replies.recv() {
+                    if let Ok(sample) = reply.result() {
+                        if let Ok(info) = decode::<ModelInfo>(&sample.payload().to_bytes()) {
+                            recorder.set_length(info.length);
+                            model_known = true;
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(t) = a.idle_timeout {
+            if last_message.elapsed().as_secs_f64() > t {
+                recorder.finish()?;
+                eprintln!("crawler-bridge: no message for {t} s; recording closed");
+                return Ok(ExitCode::from(4));
+            }
+        }
+    };
+    // Drain what already arrived, then finish the file properly.
+    while let Ok(msg) = rx.try_recv() {
+        recorder.handle(msg)?;
+    }
+    recorder.finish()?;
+    let c = recorder.counts();
+    eprintln!(
+        "crawler-bridge: {} {}: {} states ({} with fields), {} metric blocks, {} episodes, {} rejected, {} dropped",
+        if interrupted { "interrupted; recording closed properly" } else { "run finished; recording closed" },
+        a.out.display(),
+        c.states,
+        c.recorded_steps,
+        c.metric_blocks,
+        c.episodes,
+        c.rejected,
+        c.dropped
+    );
+    drop(_subs);
+    let _ = session.close().wait();
+    Ok(ExitCode::SUCCESS)
+}

@@ -12,6 +12,7 @@
 //!
 //! Units are SI throughout.
 
+pub mod client;
 pub mod controller;
 pub mod operating_point;
 pub mod optimizer;

@@ -31,6 +31,51 @@ enum Command {
     Optimize(OptimizeArgs),
     /// List the registered policies.
     Policies,
+    /// Control a co-simulation run over zenoh: answer every plant state with an actuation.
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// The policy (see `crawler-controller policies`).
+    #[arg(long, default_value = "optimal")]
+    policy: String,
+    /// Scenario file for the task, the limits and the default wave (default: the paper's).
+    /// The plant's physical parameters come from the plant itself.
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    network: crawler_transport::NetworkArgs,
+    /// Wave amplitude f0, N (wave, resonance, sweep).
+    #[arg(long, allow_hyphen_values = true)]
+    f0: Option<f64>,
+    /// Wave number k, rad/m (must fit the plant's body).
+    #[arg(long, allow_hyphen_values = true)]
+    k: Option<f64>,
+    /// Angular frequency, rad/s (wave).
+    #[arg(long, conflicts_with = "alpha", allow_hyphen_values = true)]
+    omega: Option<f64>,
+    /// omega / omega_n (wave).
+    #[arg(long, allow_hyphen_values = true)]
+    alpha: Option<f64>,
+    /// sweep: the alpha values, comma separated.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    sweep: Vec<f64>,
+    /// sweep: seconds at each alpha.
+    #[arg(long, allow_hyphen_values = true)]
+    dwell: Option<f64>,
+    /// optimal: the model (paper, improved).
+    #[arg(long)]
+    model: Option<String>,
+    /// optimal: grid points per axis.
+    #[arg(long)]
+    grid: Option<usize>,
+    /// Seconds to wait for the plant.
+    #[arg(long, default_value_t = 60.0)]
+    wait_timeout: f64,
+    /// Print the final summary as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -97,7 +142,17 @@ struct OptimizeArgs {
 }
 
 fn main() -> ExitCode {
+    crawler_transport::ensure_cpu_features();
     let cli = Cli::parse();
+    if let Command::Run(a) = cli.command {
+        return match run_client(a) {
+            Ok(code) => code,
+            Err(e) => {
+                eprintln!("crawler-controller: error: {e:#}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -107,8 +162,78 @@ fn main() -> ExitCode {
     }
 }
 
+fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
+    use crawler_controller::client::{run, ClientOptions, ClientOutcome, Interrupt};
+    use crawler_controller::controller::PolicyOptions;
+    let scenario =
+        crawler_plant::scenario::Scenario::load(a.scenario.as_deref(), &Default::default())?;
+    let network = a.network.network()?;
+    anyhow::ensure!(
+        a.wait_timeout.is_finite() && a.wait_timeout > 0.0 && a.wait_timeout < 1e9,
+        "invalid --wait-timeout = {}: allowed a number of seconds > 0",
+        a.wait_timeout
+    );
+    for (name, x) in [
+        ("f0", a.f0),
+        ("k", a.k),
+        ("omega", a.omega),
+        ("alpha", a.alpha),
+        ("dwell", a.dwell),
+    ] {
+        if let Some(x) = x {
+            anyhow::ensure!(
+                x.is_finite() && (x > 0.0 || (name == "f0" && x == 0.0)),
+                "invalid --{name} = {x}: allowed a finite number > 0"
+            );
+        }
+    }
+    let model = a
+        .model
+        .as_deref()
+        .map(ModelChoice::parse)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let options = PolicyOptions {
+        f0: a.f0,
+        k: a.k,
+        omega: a.omega,
+        alpha: a.alpha,
+        sweep: a.sweep.clone(),
+        dwell: a.dwell,
+        model,
+        grid: a.grid,
+    };
+    let (tx, rx) = crossbeam_channel::unbounded::<Interrupt>();
+    ctrlc::set_handler(move || {
+        let _ = tx.send(Interrupt);
+    })?;
+    let opts = ClientOptions {
+        policy: a.policy.clone(),
+        options,
+        scenario,
+        network,
+        wait_timeout: std::time::Duration::from_secs_f64(a.wait_timeout),
+    };
+    match run(opts, rx)? {
+        ClientOutcome::Finished(summary) => {
+            if a.json {
+                println!("{}", serde_json::to_string_pretty(&summary)?);
+            } else {
+                println!("predicted against simulated (plant's steady window):");
+                print!("{}", summary.table());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        ClientOutcome::Ended { reason, exit_code } => {
+            eprintln!("crawler-controller: run ended: {reason}");
+            Ok(ExitCode::from(exit_code))
+        }
+    }
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Run(_) => unreachable!("handled in main"),
         Command::Predict(a) => predict(a),
         Command::Optimize(a) => optimize(a),
         Command::Policies => {

@@ -72,6 +72,7 @@ struct Sweep {
 impl TravellingWaveModel {
     fn setup(&self, op: &OperatingPoint) -> Setup {
         let w = op.wave;
+        let cv = op.friction.viscous;
         let kappa =
             (op.body.stiffness() * w.k * w.k - op.body.density * w.omega * w.omega) / w.omega;
         let h = TAU / self.steps as f64;

@@ -30,27 +30,38 @@ pub struct Selection {
 /// Solves `w = b - g s, s ∈ Sgn(w)` for `g > 0` exactly; for `g == 0`, returns `w = b, s = sign b`.
 #[inline(always)]
 pub fn select(b: f64, g: f64) -> Selection {
-    let excess = b.abs() - g;
-    if excess > 0.0 || g <= 0.0 {
-        let sign = if b > 0.0 {
+    select_with_inverse(b, g, if g > 0.0 { 1.0 / g } else { 0.0 })
+}
+
+/// [`select`] with `inv_g = 1 / g` precomputed (0 when `g == 0`), written with selects only
+/// so that loops over many points vectorise: `w = copysign(max(|b| - g, 0), b)`, and
+/// `s = clamp(b / g, -1, 1)` while stuck, `s = sign(b)` exactly while sliding.
+/// The plant's kernel performs exactly these operations.
+#[inline(always)]
+pub fn select_with_inverse(b: f64, g: f64, inv_g: f64) -> Selection {
+    if g <= 0.0 {
+        let s = if b > 0.0 {
             1.0
         } else if b < 0.0 {
             -1.0
         } else {
             0.0
         };
-        Selection {
-            velocity: b - g * sign,
-            s: sign,
+        return Selection {
+            velocity: b,
+            s,
             stuck: false,
-        }
-    } else {
-        Selection {
-            velocity: 0.0,
-            s: b / g,
-            stuck: true,
-        }
+        };
     }
+    let excess = b.abs() - g;
+    let slide = if excess > 0.0 { excess } else { 0.0 };
+    let velocity = slide.copysign(b);
+    let q = b * inv_g;
+    let q = if q < 1.0 { q } else { 1.0 };
+    let q = if q > -1.0 { q } else { -1.0 };
+    let stuck = excess <= 0.0;
+    let s = if stuck { q } else { 1.0f64.copysign(b) };
+    Selection { velocity, s, stuck }
 }
 
 #[cfg(test)]

@@ -13,8 +13,12 @@
 //!
 //! Units are SI throughout: m, s, N, Pa, W, J.
 
+pub mod bench;
+pub mod checkpoint;
+pub mod cosim;
 pub mod error;
 pub mod events;
+pub mod framing;
 pub mod friction;
 pub mod metrics;
 pub mod model_description;
@@ -22,6 +26,7 @@ pub mod params;
 pub mod plant;
 pub mod scenario;
 pub mod scenario_args;
+pub mod simd;
 pub mod simulate;
 pub mod slave;
 pub mod solver;

@@ -23,6 +23,48 @@ enum Command {
     Simulate(SimulateArgs),
     /// Print the model description (value references, units) as JSON or modelDescription.xml.
     Describe(DescribeArgs),
+    /// Time the stepping loop: cell updates per second, single thread (prints JSON).
+    Bench(BenchArgs),
+    /// Run as the co-simulation plant over zenoh: owns the clock, steps in lockstep with a controller.
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    #[command(flatten)]
+    network: crawler_transport::NetworkArgs,
+    /// Communication step H, s (default: the scenario's numerics.step).
+    #[arg(long, allow_hyphen_values = true)]
+    step: Option<f64>,
+    /// Resume a stopped run from its checkpoint (the checkpoint's scenario and run id are used).
+    #[arg(long, value_name = "CHECKPOINT", conflicts_with = "scenario")]
+    resume: Option<std::path::PathBuf>,
+    /// Where to write the checkpoint if the run stops early (default: crawler-<run-id>.ckpt).
+    #[arg(long, value_name = "FILE")]
+    checkpoint: Option<std::path::PathBuf>,
+    /// Seconds to wait for a controller to join.
+    #[arg(long, default_value_t = 60.0)]
+    wait_timeout: f64,
+    /// Seconds to wait for the controller's answer to one state.
+    #[arg(long, default_value_t = 30.0)]
+    step_timeout: f64,
+    /// Print the final report as JSON (the same object as `simulate --json`).
+    #[arg(long)]
+    json: bool,
+    /// Largest number of stick-slip episodes listed (all are counted).
+    #[arg(long, default_value_t = 10_000)]
+    max_episodes: usize,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    /// Wall time per measurement, s.
+    #[arg(long, default_value_t = 2.0)]
+    seconds: f64,
 }
 
 #[derive(Args)]
@@ -47,9 +89,10 @@ struct DescribeArgs {
 }
 
 fn main() -> ExitCode {
+    crawler_transport::ensure_cpu_features();
     let cli = Cli::parse();
-    match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
+    match dispatch(cli) {
+        Ok(code) => code,
         Err(e) => {
             eprintln!("crawler-plant: error: {e:#}");
             ExitCode::FAILURE
@@ -57,8 +100,98 @@ fn main() -> ExitCode {
     }
 }
 
+fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
+    if let Command::Run(a) = cli.command {
+        return cosim(a);
+    }
+    run(cli).map(|()| ExitCode::SUCCESS)
+}
+
+fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
+    anyhow::ensure!(
+        x.is_finite() && x > 0.0 && x < 1e9,
+        "invalid --{name} = {x}: allowed a number of seconds > 0"
+    );
+    Ok(std::time::Duration::from_secs_f64(x))
+}
+
+fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
+    use crawler_plant::checkpoint::Checkpoint;
+    use crawler_plant::cosim::{run, Control, Outcome, RunOptions};
+    let resume = a.resume.as_deref().map(Checkpoint::load).transpose()?;
+    let mut net_args = a.network.clone();
+    if let (Some(c), None) = (&resume, &a.network.run_id) {
+        net_args.run_id = Some(c.run_id.clone());
+    }
+    let network = net_args.network()?;
+    let scenario = match &resume {
+        Some(c) => c.scenario.clone(),
+        None => {
+            let mut s = a.scenario.load()?;
+            if let Some(h) = a.step {
+                s.plant.numerics.step = h;
+                s.plant.validate()?;
+                anyhow::ensure!(
+                    h <= s.t_end,
+                    "invalid --step = {h}: allowed 0 < step <= t_end = {}",
+                    s.t_end
+                );
+            }
+            s
+        }
+    };
+    if let (Some(c), Some(t)) = (&resume, a.scenario.t_end) {
+        anyhow::ensure!(
+            (t - c.scenario.t_end).abs() < 1e-12,
+            "--t-end = {t} differs from the checkpoint's t_end = {}: a resumed run ends where the original would",
+            c.scenario.t_end
+        );
+    }
+    let (tx, rx) = crossbeam_channel::unbounded::<Control>();
+    let interrupt = tx.clone();
+    ctrlc::set_handler(move || {
+        let _ = interrupt.send(Control::Interrupt);
+    })?;
+    let checkpoint = a
+        .checkpoint
+        .clone()
+        .unwrap_or_else(|| format!("crawler-{}.ckpt", network.run_id).into());
+    let opts = RunOptions {
+        scenario,
+        network,
+        wait_timeout: seconds("wait-timeout", a.wait_timeout)?,
+        step_timeout: seconds("step-timeout", a.step_timeout)?,
+        checkpoint,
+        resume,
+        max_episodes: a.max_episodes,
+    };
+    match run(opts, tx, rx)? {
+        Outcome::Finished(report) => {
+            if a.json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                println!("{}", report.summary());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Outcome::Stopped {
+            reason,
+            checkpoint,
+            exit_code,
+        } => {
+            eprintln!(
+                "crawler-plant: run stopped: {reason}. Checkpoint: {} (continue with: crawler-plant run --resume {})",
+                checkpoint.display(),
+                checkpoint.display()
+            );
+            Ok(ExitCode::from(exit_code))
+        }
+    }
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Run(_) => unreachable!("handled by dispatch"),
         Command::Simulate(a) => {
             let scenario = a.scenario.load()?;
             let report = simulate(
@@ -71,25 +204,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
-                let p = &report.parameters;
-                println!("scenario {}: eps = {}, n_F = {}, f0 = {} N, k = {:.4} rad/m, omega = {:.3} rad/s (alpha = {:.3})",
-                    report.scenario, p.eps, p.n_f, p.f0, p.k, p.omega, p.alpha);
-                println!("grid: {} cells, dt = {:.3e} s, {} steps to t = {} s; window {:.3}-{:.3} s ({:.1} periods)",
-                    report.cells, report.dt, report.steps, report.t_end, report.window.start, report.window.end, report.window.periods);
-                println!("  velocity V        {:+.6e} m/s", report.velocity);
-                println!("  power P           {:.6e} W", report.power);
-                println!("  mileage M         {:.6e} m/J", report.mileage);
-                println!("  max stress        {:.6e} Pa", report.max_stress);
-                println!("  max strain        {:.6e}", report.max_strain);
-                println!("  stuck fraction    {:.4}", report.stuck_fraction);
-                println!("  <s>               {:+.6}", report.mean_friction_selection);
-                println!(
-                    "  episodes          {} ({:.3} per node per period, mean {:.3e} s)",
-                    report.events.count,
-                    report.events.per_node_per_period,
-                    report.events.mean_duration
-                );
+                println!("{}", report.summary());
             }
+            Ok(())
+        }
+        Command::Bench(a) => {
+            let scenario = a.scenario.load()?;
+            anyhow::ensure!(
+                a.seconds.is_finite() && a.seconds > 0.0,
+                "invalid --seconds = {}: allowed > 0",
+                a.seconds
+            );
+            let r =
+                crawler_plant::bench::bench(&scenario, scenario.plant.numerics.cells, a.seconds)?;
+            println!("{}", serde_json::to_string(&r)?);
             Ok(())
         }
         Command::Describe(a) => {

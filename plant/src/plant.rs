@@ -75,6 +75,8 @@ pub struct PlantState {
     pub outputs: StepOutputs,
     /// Actuator work of a muscle-force jump not yet reported in a step's input power, J.
     pub pending_work: f64,
+    /// Σ v over the nodes as the kernel summed it in the last step, m/s.
+    pub velocity_sum: f64,
 }
 
 /// The dynamic state at the start of a step, restored if the step fails (buffers are reused).
@@ -86,6 +88,7 @@ struct Backup {
     metrics: MetricsTracker,
     events: EventTracker,
     step: u64,
+    velocity_sum: f64,
 }
 
 /// A finite-difference crawler, stepped in communication steps of `numerics.step` seconds.
@@ -133,6 +136,7 @@ impl Plant {
                 metrics: MetricsTracker::new(t0, params.numerics.block, params.numerics.settle),
                 events: EventTracker::new(0, 0.0),
                 step: 0,
+                velocity_sum: 0.0,
             },
             pending_work: 0.0,
         })
@@ -190,7 +194,7 @@ impl Plant {
 
     /// Stick flags of the last internal step.
     pub fn stuck(&self) -> &[bool] {
-        &self.solver.stuck
+        self.solver.stuck()
     }
 
     /// Muscle-force field at half nodes (general actuation), N.
@@ -276,6 +280,7 @@ impl Plant {
         }
         let before = self.muscle_force();
         self.solver.field.iter_mut().for_each(|g| *g = 0.0);
+        self.solver.set_field_active(false);
         self.solver.set_wave_number(wave.k, self.disc.dx);
         self.drive = Drive::Wave(wave);
         self.account_jump(&before);
@@ -306,6 +311,7 @@ impl Plant {
         let was_field = self.drive == Drive::Field;
         self.drive = Drive::Field;
         self.solver.field.copy_from_slice(field);
+        self.solver.set_field_active(true);
         self.account_jump(&before);
         if !was_field {
             let now = self.internal_time(self.step);
@@ -333,20 +339,23 @@ impl Plant {
         let b = &mut self.backup;
         b.u.clone_from(&self.solver.u);
         b.v.clone_from(&self.solver.v);
-        b.stuck.clone_from(&self.solver.stuck);
+        b.stuck.clear();
+        b.stuck.extend_from_slice(self.solver.stuck());
         b.metrics.clone_from(&self.metrics);
         b.events.clone_from(&self.events);
         b.step = self.step;
+        b.velocity_sum = self.solver.velocity_sum();
     }
 
     fn restore_backup(&mut self) {
         let b = &self.backup;
         self.solver.u.clone_from(&b.u);
         self.solver.v.clone_from(&b.v);
-        self.solver.stuck.clone_from(&b.stuck);
+        self.solver.set_stuck(&b.stuck);
         self.metrics.clone_from(&b.metrics);
         self.events.clone_from(&b.events);
         self.step = b.step;
+        self.solver.set_velocity_sum(b.velocity_sum);
         self.episodes.clear();
     }
 
@@ -422,7 +431,7 @@ impl Plant {
             macro_step: self.macro_step,
             u: self.solver.u.clone(),
             v: self.solver.v.clone(),
-            stuck: self.solver.stuck.clone(),
+            stuck: self.solver.stuck().to_vec(),
             field: self.solver.field.clone(),
             drive: self.drive,
             metrics: MetricsTracker {
@@ -432,6 +441,7 @@ impl Plant {
             events: self.events.clone(),
             outputs: self.outputs,
             pending_work: self.pending_work,
+            velocity_sum: self.solver.velocity_sum(),
         }
     }
 
@@ -471,6 +481,7 @@ impl Plant {
         }
         crate::error::finite("state.t0", state.t0)?;
         crate::error::finite("state.pending_work", state.pending_work)?;
+        crate::error::finite("state.velocity_sum", state.velocity_sum)?;
         if state.step != state.macro_step.saturating_mul(self.disc.substeps) {
             return Err(ParamError::new(
                 "state.step",
@@ -490,13 +501,16 @@ impl Plant {
         self.macro_step = state.macro_step;
         self.solver.u.clone_from(&state.u);
         self.solver.v.clone_from(&state.v);
-        self.solver.stuck.clone_from(&state.stuck);
+        self.solver.set_stuck(&state.stuck);
         self.solver.field.clone_from(&state.field);
+        self.solver
+            .set_field_active(state.field.iter().any(|&g| g != 0.0));
         self.drive = state.drive;
         self.metrics = state.metrics.clone();
         self.events = state.events.clone();
         self.outputs = state.outputs;
         self.pending_work = state.pending_work;
+        self.solver.set_velocity_sum(state.velocity_sum);
         self.episodes.clear();
         Ok(())
     }

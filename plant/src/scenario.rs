@@ -223,7 +223,7 @@ pub struct Overrides {
 }
 
 /// A validated scenario.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scenario {
     /// Short name.
     pub name: String,

@@ -1,9 +1,10 @@
 //! `crawler-plant simulate`: the plant under a fixed travelling wave, in process.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::events::Episode;
 use crate::metrics::Metrics;
+use crate::plant::{Drive, Plant};
 use crate::scenario::Scenario;
 use crate::slave::{Slave, SlaveError, StepStatus};
 
@@ -71,7 +72,8 @@ pub struct EventsReport {
     pub episodes_truncated: bool,
 }
 
-/// Resolved parameters, SI units.
+/// Resolved parameters, SI units. The wave fields describe the actuation in force at the end
+/// of the run (null under a general muscle-force field).
 #[derive(Debug, Clone, Serialize)]
 pub struct ResolvedParameters {
     /// Cross-section A_c, m^2.
@@ -91,23 +93,23 @@ pub struct ResolvedParameters {
     /// Body length L, m.
     pub length: f64,
     /// Wave amplitude f0, N.
-    pub f0: f64,
+    pub f0: Option<f64>,
     /// Wave number k, rad/m.
-    pub k: f64,
+    pub k: Option<f64>,
     /// Angular frequency omega, rad/s.
-    pub omega: f64,
+    pub omega: Option<f64>,
     /// omega / omega_n.
-    pub alpha: f64,
+    pub alpha: Option<f64>,
     /// Phase, rad.
-    pub phase: f64,
+    pub phase: Option<f64>,
     /// Natural frequency omega_n = k c, rad/s.
-    pub omega_n: f64,
+    pub omega_n: Option<f64>,
+    /// Paper's zeta = c_v / (k sqrt(rho A_c E)).
+    pub zeta: Option<f64>,
+    /// Paper's pi_r = c_d / (f0 k) (null when f0 = 0).
+    pub pi_r: Option<f64>,
     /// Wave speed c, m/s.
     pub wave_speed: f64,
-    /// Paper's zeta = c_v / (k sqrt(rho A_c E)).
-    pub zeta: f64,
-    /// Paper's pi_r = c_d / (f0 k).
-    pub pi_r: f64,
     /// Communication step H, s.
     pub step: f64,
     /// Achieved Courant number.
@@ -156,6 +158,8 @@ pub struct Report {
     pub macro_steps: u64,
     /// End time, s.
     pub t_end: f64,
+    /// CRC-32 of the final displacement and velocity bits: equal digests, identical trajectories.
+    pub state_digest: String,
     /// The resolved parameters.
     pub parameters: ResolvedParameters,
 }
@@ -172,10 +176,15 @@ pub struct Window {
 }
 
 impl ResolvedParameters {
-    /// The parameters of a scenario.
-    pub fn of(s: &Scenario, courant: f64) -> Self {
-        let p = &s.plant;
-        let omega_n = s.natural_frequency();
+    /// The parameters of `plant`, with the wave it is driven by, if any.
+    pub fn of(plant: &Plant) -> Self {
+        let p = plant.params();
+        let c = p.body.wave_speed();
+        let wave = match plant.drive() {
+            Drive::Wave(w) => Some(w),
+            _ => None,
+        };
+        let omega_n = wave.map(|w| w.k * c);
         Self {
             area: p.body.area,
             density: p.body.density,
@@ -185,20 +194,119 @@ impl ResolvedParameters {
             eps: p.friction.eps,
             n_f: p.friction.n_f,
             length: p.length,
-            f0: s.wave.f0,
-            k: s.wave.k,
-            omega: s.wave.omega,
-            alpha: s.wave.omega / omega_n,
-            phase: s.wave.phase,
+            f0: wave.map(|w| w.f0),
+            k: wave.map(|w| w.k),
+            omega: wave.map(|w| w.omega),
+            alpha: wave.map(|w| w.omega / (w.k * c)),
+            phase: wave.map(|w| w.phase),
             omega_n,
-            wave_speed: p.body.wave_speed(),
-            zeta: p.friction.viscous / (s.wave.k * (p.body.density * p.body.stiffness()).sqrt()),
-            pi_r: p.friction.dry / (s.wave.f0 * s.wave.k),
+            zeta: wave
+                .map(|w| p.friction.viscous / (w.k * (p.body.density * p.body.stiffness()).sqrt())),
+            pi_r: wave
+                .filter(|w| w.f0 > 0.0)
+                .map(|w| p.friction.dry / (w.f0 * w.k)),
+            wave_speed: c,
             step: p.numerics.step,
-            courant,
+            courant: plant.discretisation().courant,
             settle: p.numerics.settle,
         }
     }
+}
+
+/// The stick-slip episodes of the steady window, kept for the report (bounded).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeLog {
+    /// Largest number kept.
+    pub max: usize,
+    /// Kept episodes, in order of their end.
+    pub episodes: Vec<Episode>,
+    /// True if some were not kept.
+    pub truncated: bool,
+}
+
+impl EpisodeLog {
+    /// An empty log keeping at most `max` episodes.
+    pub fn new(max: usize) -> Self {
+        Self {
+            max,
+            episodes: Vec::new(),
+            truncated: false,
+        }
+    }
+
+    /// Takes the episodes that ended in the plant's last communication step, after the transient.
+    pub fn observe(&mut self, plant: &Plant) {
+        let settled = plant.metrics_tracker().settle_until;
+        for ep in plant.episodes() {
+            if ep.end >= settled {
+                if self.episodes.len() < self.max {
+                    self.episodes.push(*ep);
+                } else {
+                    self.truncated = true;
+                }
+            }
+        }
+    }
+}
+
+/// CRC-32 (hex) of the bits of the displacement and velocity fields and the step count: equal
+/// digests mean bit-identical states.
+pub fn state_digest(plant: &Plant) -> String {
+    let mut h = crc32fast::Hasher::new();
+    h.update(&plant.internal_steps().to_le_bytes());
+    for x in plant.displacement().iter().chain(plant.velocity()) {
+        h.update(&x.to_bits().to_le_bytes());
+    }
+    format!("{:08x}", h.finalize())
+}
+
+/// The report of a finished run of `plant` (scenario `name`), with the episodes of `log`.
+pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, SimulateError> {
+    let p = plant.params();
+    let m: Metrics = plant
+        .steady_metrics()
+        .ok_or(SimulateError::NoSteadyWindow {
+            t_end: plant.time(),
+            settle: p.numerics.settle,
+            period: plant.block_length(),
+        })?;
+    let mut episodes = log.episodes.clone();
+    episodes.retain(|e| e.end >= m.start && e.end < m.end);
+    let d = *plant.discretisation();
+    let f = p.friction;
+    Ok(Report {
+        scenario: name.to_string(),
+        velocity: m.velocity,
+        power: m.power,
+        mileage: m.mileage,
+        max_stress: m.max_stress,
+        max_strain: m.max_strain,
+        stuck_fraction: m.stuck_fraction,
+        mean_friction_selection: m.mean_friction_selection,
+        dissipation: m.dissipation,
+        identity_velocity: f.band() * (f.n_f - m.mean_friction_selection) / f.viscous,
+        momentum_residual: m.momentum_residual(p.body.density, &f),
+        events: EventsReport {
+            count: m.episodes,
+            per_node_per_period: m.episodes_per_node_per_period,
+            mean_duration: m.mean_stick_duration,
+            min_duration: p.numerics.min_stick,
+            episodes,
+            episodes_truncated: log.truncated,
+        },
+        window: Window {
+            start: m.start,
+            end: m.end,
+            periods: m.periods,
+        },
+        cells: p.numerics.cells,
+        dt: d.dt,
+        steps: plant.internal_steps(),
+        macro_steps: plant.macro_step(),
+        t_end: plant.time(),
+        state_digest: state_digest(plant),
+        parameters: ResolvedParameters::of(plant),
+    })
 }
 
 /// Runs the scenario's plant under its wave from t = 0 to `t_end` (rounded to whole steps).
@@ -209,12 +317,10 @@ pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, Si
     slave.exit_initialization_mode()?;
     let h = scenario.plant.numerics.step;
     let steps = (scenario.t_end / h).round().max(1.0) as u64;
-    let bar = opts.progress.then(|| progress_bar(steps));
-    let mut episodes: Vec<Episode> = Vec::new();
-    let mut truncated = false;
+    let bar = opts.progress.then(|| progress_bar(steps, "simulating"));
+    let mut log = EpisodeLog::new(opts.max_episodes);
     for n in 0..steps {
-        let t = n as f64 * h;
-        match slave.do_step(t, h) {
+        match slave.do_step(n as f64 * h, h) {
             StepStatus::Ok => {}
             StepStatus::Discard {
                 last_successful_time,
@@ -227,17 +333,7 @@ pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, Si
             }
             StepStatus::Error(e) => return Err(e.into()),
         }
-        let plant = slave.plant();
-        let settled = plant.metrics_tracker().settle_until;
-        for ep in plant.episodes() {
-            if ep.end >= settled {
-                if episodes.len() < opts.max_episodes {
-                    episodes.push(*ep);
-                } else {
-                    truncated = true;
-                }
-            }
-        }
+        log.observe(slave.plant());
         if let Some(b) = &bar {
             if n % 256 == 0 {
                 b.set_position(n);
@@ -247,62 +343,58 @@ pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, Si
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    let plant = slave.plant();
-    let m: Metrics = plant
-        .steady_metrics()
-        .ok_or(SimulateError::NoSteadyWindow {
-            t_end: scenario.t_end,
-            settle: scenario.plant.numerics.settle,
-            period: scenario.wave.period(),
-        })?;
-    episodes.retain(|e| e.end >= m.start && e.end < m.end);
-    let d = *plant.discretisation();
-    let f = scenario.plant.friction;
-    Ok(Report {
-        scenario: scenario.name.clone(),
-        velocity: m.velocity,
-        power: m.power,
-        mileage: m.mileage,
-        max_stress: m.max_stress,
-        max_strain: m.max_strain,
-        stuck_fraction: m.stuck_fraction,
-        mean_friction_selection: m.mean_friction_selection,
-        dissipation: m.dissipation,
-        identity_velocity: f.band() * (f.n_f - m.mean_friction_selection) / f.viscous,
-        momentum_residual: m.momentum_residual(scenario.plant.body.density, &f),
-        events: EventsReport {
-            count: m.episodes,
-            per_node_per_period: m.episodes_per_node_per_period,
-            mean_duration: m.mean_stick_duration,
-            min_duration: scenario.plant.numerics.min_stick,
-            episodes,
-            episodes_truncated: truncated,
-        },
-        window: Window {
-            start: m.start,
-            end: m.end,
-            periods: m.periods,
-        },
-        cells: scenario.plant.numerics.cells,
-        dt: d.dt,
-        steps: plant.internal_steps(),
-        macro_steps: plant.macro_step(),
-        t_end: plant.time(),
-        parameters: ResolvedParameters::of(scenario, d.courant),
-    })
+    report(&scenario.name, slave.plant(), &log)
 }
 
-fn progress_bar(total: u64) -> indicatif::ProgressBar {
+/// A progress bar on stderr (drawn only when stderr is a terminal).
+pub fn progress_bar(total: u64, what: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::with_draw_target(
         Some(total),
         indicatif::ProgressDrawTarget::stderr(),
     );
     bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} simulating [{bar:40}] {pos}/{len} steps ({eta})",
-        )
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{spinner}} {what} [{{bar:40}}] {{pos}}/{{len}} steps ({{eta}})"
+        ))
         .expect("valid template")
         .progress_chars("=> "),
     );
     bar
+}
+
+impl Report {
+    /// A human-readable summary (several lines).
+    pub fn summary(&self) -> String {
+        let p = &self.parameters;
+        let opt =
+            |x: Option<f64>, prec: usize| x.map_or("-".to_string(), |v| format!("{v:.prec$}"));
+        let mut out = String::new();
+        out += &format!(
+            "scenario {}: eps = {}, n_F = {}, f0 = {} N, k = {} rad/m, omega = {} rad/s (alpha = {})\n",
+            self.scenario,
+            p.eps,
+            p.n_f,
+            opt(p.f0, 4),
+            opt(p.k, 4),
+            opt(p.omega, 3),
+            opt(p.alpha, 3)
+        );
+        out += &format!(
+            "grid: {} cells, dt = {:.3e} s, {} steps to t = {} s; window {:.3}-{:.3} s ({:.1} periods)\n",
+            self.cells, self.dt, self.steps, self.t_end, self.window.start, self.window.end, self.window.periods
+        );
+        out += &format!("  velocity V        {:+.6e} m/s\n", self.velocity);
+        out += &format!("  power P           {:.6e} W\n", self.power);
+        out += &format!("  mileage M         {:.6e} m/J\n", self.mileage);
+        out += &format!("  max stress        {:.6e} Pa\n", self.max_stress);
+        out += &format!("  max strain        {:.6e}\n", self.max_strain);
+        out += &format!("  stuck fraction    {:.4}\n", self.stuck_fraction);
+        out += &format!("  <s>               {:+.6}\n", self.mean_friction_selection);
+        out += &format!(
+            "  episodes          {} ({:.3} per node per period, mean {:.3e} s)\n",
+            self.events.count, self.events.per_node_per_period, self.events.mean_duration
+        );
+        out += &format!("  state digest      {}", self.state_digest);
+        out
+    }
 }

@@ -9,6 +9,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::framing;
 use crate::model_description::{vr, ModelDescription};
 use crate::params::PlantParams;
 use crate::plant::{Drive, Plant, PlantState, StepError};
@@ -617,41 +618,18 @@ impl Slave {
         Ok(())
     }
 
-    /// `fmi3SerializeFMUState`: bytes `CRWLSTAT`, format version (u32 LE), CRC-32 of the
-    /// payload (u32 LE), payload (MessagePack of [`PlantState`]).
+    /// `fmi3SerializeFMUState`: a framed blob ([`crate::framing`], magic `CRWLSTAT`) holding
+    /// the MessagePack of the [`PlantState`].
     pub fn serialize_state(state: &PlantState) -> Vec<u8> {
-        let payload = rmp_serde::to_vec_named(state).expect("plant state serializes");
-        let mut out = Vec::with_capacity(payload.len() + 16);
-        out.extend_from_slice(STATE_MAGIC);
-        out.extend_from_slice(&STATE_VERSION.to_le_bytes());
-        out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
-        out.extend_from_slice(&payload);
-        out
+        framing::encode(STATE_MAGIC, STATE_VERSION, state)
     }
 
     /// `fmi3DeserializeFMUState`: checks magic, version and checksum; values are validated when
     /// the state is set.
     pub fn deserialize_state(bytes: &[u8]) -> Result<PlantState, SlaveError> {
-        if bytes.len() < 16 || &bytes[..8] != STATE_MAGIC {
-            return Err(SlaveError::BadState(
-                "not a crawler plant state (magic bytes CRWLSTAT missing)".into(),
-            ));
-        }
-        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-        if version != STATE_VERSION {
-            return Err(SlaveError::BadState(format!(
-                "format version {version}, this build reads {STATE_VERSION}"
-            )));
-        }
-        let crc = u32::from_le_bytes(bytes[12..16].try_into().unwrap());
-        let payload = &bytes[16..];
-        if crc32fast::hash(payload) != crc {
-            return Err(SlaveError::BadState(
-                "checksum mismatch (truncated or corrupted)".into(),
-            ));
-        }
         let state: PlantState =
-            rmp_serde::from_slice(payload).map_err(|e| SlaveError::BadState(e.to_string()))?;
+            framing::decode(STATE_MAGIC, STATE_VERSION, "crawler plant state", bytes)
+                .map_err(|e| SlaveError::BadState(e.0))?;
         state
             .params
             .validate()

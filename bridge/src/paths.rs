@@ -1,0 +1,48 @@
+//! Entity paths of a crawler recording (what tests and users query).
+
+/// Body points at `x + u`, classed stick / slip.
+pub const BODY: &str = "body";
+/// Displacement field `u(x) - mean u`, one bar per node, m.
+pub const FIELD_U: &str = "fields/u";
+/// Velocity field `v(x)`, one bar per node, m/s.
+pub const FIELD_V: &str = "fields/v";
+/// Space-time heatmap of `u - mean u`: blocks of rows (time) by nodes.
+pub const HEATMAP: &str = "heatmap/u";
+/// Stick/slip lanes, one entity per recorded node: `lanes/node_0017`.
+pub const LANES: &str = "lanes";
+/// Tail displacement: `tail/plant`, `tail/paper`.
+pub const TAIL: &str = "tail";
+/// Text log: episodes, status, recorder notes.
+pub const LOG: &str = "log";
+/// Episodes in the text log.
+pub const LOG_EPISODES: &str = "log/episodes";
+/// Status messages of the processes.
+pub const LOG_STATUS: &str = "log/status";
+/// Notes of the recorder itself (decimation, drops).
+pub const LOG_RECORDER: &str = "log/recorder";
+/// Per-step scalars: mean speed and input power of each communication step.
+pub const STEP: &str = "step";
+
+/// The time series of `metric` (`velocity`, `power`, ...): `metrics/<metric>/<source>`.
+pub fn metric(metric: &str) -> String {
+    format!("metrics/{metric}")
+}
+
+/// The series of `metric` from `source` (`plant`, `paper`, `improved`).
+pub fn metric_series(metric: &str, source: &str) -> String {
+    format!("metrics/{metric}/{source}")
+}
+
+/// The lane of node `i`.
+pub fn lane(i: usize) -> String {
+    format!("{LANES}/node_{i:04}")
+}
+
+/// The metrics recorded per forcing period.
+pub const METRICS: [&str; 5] = [
+    "velocity",
+    "power",
+    "mileage",
+    "max_stress",
+    "stuck_fraction",
+];

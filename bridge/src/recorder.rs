@@ -1,0 +1,584 @@
+//! The writer: turns protocol messages into Rerun entities, in step order, with decimation.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use rerun::RecordingStream;
+
+use crawler_protocol::{
+    decode, Events, Metrics, ModelPrediction, Prediction, Series, State, Status,
+};
+
+use crate::paths;
+
+/// What the zenoh callbacks hand to the writer (raw payloads: decoding happens on the writer).
+#[derive(Debug, Clone)]
+pub enum Incoming {
+    /// `crawler/<run>/state`.
+    State(Vec<u8>),
+    /// `crawler/<run>/events`.
+    Events(Vec<u8>),
+    /// `crawler/<run>/metrics`.
+    Metrics(Vec<u8>),
+    /// `crawler/<run>/prediction`.
+    Prediction(Vec<u8>),
+    /// `crawler/<run>/status/*`.
+    Status(Vec<u8>),
+}
+
+/// Recorder settings.
+#[derive(Debug, Clone, Copy)]
+pub struct RecorderOptions {
+    /// Record the fields of every `every`-th step (metrics, events and lanes are always recorded).
+    pub every: u64,
+    /// Most nodes given a stick/slip lane (evenly spaced).
+    pub lanes: usize,
+    /// Rows (recorded steps) per heatmap block.
+    pub heatmap_rows: usize,
+    /// Flush the file at least this often (bounds what `kill -9` loses).
+    pub flush_every: Duration,
+}
+
+impl Default for RecorderOptions {
+    fn default() -> Self {
+        Self {
+            every: 1,
+            lanes: 64,
+            heatmap_rows: 128,
+            flush_every: Duration::from_millis(500),
+        }
+    }
+}
+
+/// Counters of the recording, for tests and the final report.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// States received and decoded.
+    pub states: u64,
+    /// States whose fields were recorded.
+    pub recorded_steps: u64,
+    /// Duplicate states ignored (the plant resends a state when no answer comes).
+    pub duplicates: u64,
+    /// Episodes logged.
+    pub episodes: u64,
+    /// Metric blocks logged.
+    pub metric_blocks: u64,
+    /// Messages that failed to decode (never recorded).
+    pub rejected: u64,
+    /// Messages the callbacks dropped because the writer was behind.
+    pub dropped: u64,
+}
+
+/// Converts messages into a recording.
+pub struct Recorder {
+    rec: RecordingStream,
+    opts: RecorderOptions,
+    /// Current decimation (>= opts.every; raised while the writer is behind).
+    every: u64,
+    pending: BTreeMap<u64, State>,
+    next_step: Option<u64>,
+    last_stuck: Vec<bool>,
+    lane_nodes: Vec<usize>,
+    heat: Vec<f32>,
+    heat_rows: usize,
+    heat_start_step: u64,
+    predictions: Vec<ModelPrediction>,
+    tail_series: Option<Series>,
+    tail_offset: Option<f64>,
+    tail_buffer: Vec<(u64, f64, f64)>,
+    settled: bool,
+    counts: Counts,
+    last_flush: Instant,
+    finished: bool,
+    saw_last_state: bool,
+    length: f64,
+}
+
+/// The recording of `application` written to `path`, with the default layout.
+pub fn open_file(path: &Path) -> anyhow::Result<RecordingStream> {
+    let rec = rerun::RecordingStreamBuilder::new("crawler")
+        .with_blueprint(crate::layout::blueprint())
+        .save(path)
+        .map_err(|e| anyhow::anyhow!("cannot write recording {}: {e}", path.display()))?;
+    Ok(rec)
+}
+
+impl Recorder {
+    /// A recorder writing to `rec`.
+    pub fn new(rec: RecordingStream, opts: RecorderOptions) -> anyhow::Result<Self> {
+        let me = Self {
+            rec,
+            every: opts.every.max(1),
+            opts,
+            pending: BTreeMap::new(),
+            next_step: None,
+            last_stuck: Vec::new(),
+            lane_nodes: Vec::new(),
+            heat: Vec::new(),
+            heat_rows: 0,
+            heat_start_step: 0,
+            predictions: Vec::new(),
+            tail_series: None,
+            tail_offset: None,
+            tail_buffer: Vec::new(),
+            settled: false,
+            counts: Counts::default(),
+            last_flush: Instant::now(),
+            finished: false,
+            saw_last_state: false,
+            length: 1.0,
+        };
+        me.log_static()?;
+        Ok(me)
+    }
+
+    /// Counters so far.
+    pub fn counts(&self) -> Counts {
+        self.counts
+    }
+
+    /// True once the plant reported the end of the run and its last state was recorded.
+    pub fn finished(&self) -> bool {
+        self.finished && self.pending.is_empty()
+    }
+
+    /// Sets the body length (m) from the plant's model description.
+    pub fn set_length(&mut self, length: f64) {
+        if length.is_finite() && length > 0.0 {
+            self.length = length;
+        }
+    }
+
+    /// Current decimation.
+    pub fn decimation(&self) -> u64 {
+        self.every
+    }
+
+    fn log_static(&self) -> anyhow::Result<()> {
+        let rec = &self.rec;
+        rec.log_static(
+            paths::BODY,
+            &rerun::AnnotationContext::new([
+                (0, "slip", rerun::Rgba32::from_rgb(60, 120, 230)),
+                (1, "stick", rerun::Rgba32::from_rgb(220, 50, 40)),
+            ]),
+        )?;
+        let colors = [
+            ("plant", [30, 30, 30]),
+            ("paper", [230, 120, 20]),
+            ("improved", [30, 160, 80]),
+        ];
+        for m in paths::METRICS {
+            for (source, c) in colors {
+                rec.log_static(
+                    paths::metric_series(m, source),
+                    &rerun::SeriesLines::new()
+                        .with_names([format!("{m} ({source})")])
+                        .with_colors([rerun::Rgba32::from_rgb(c[0], c[1], c[2])])
+                        .with_widths([if source == "plant" { 2.0 } else { 1.5 }]),
+                )?;
+            }
+        }
+        rec.log_static(
+            format!("{}/plant", paths::TAIL),
+            &rerun::SeriesLines::new()
+                .with_names(["u(0, t) plant"])
+                .with_colors([rerun::Rgba32::from_rgb(30, 30, 30)]),
+        )?;
+        rec.log_static(
+            format!("{}/paper", paths::TAIL),
+            &rerun::SeriesLines::new()
+                .with_names(["u(0, t) paper mu0 + eps mu1"])
+                .with_colors([rerun::Rgba32::from_rgb(230, 120, 20)]),
+        )?;
+        Ok(())
+    }
+
+    fn set_time(&self, step: u64, time: f64) {
+        self.rec.set_time_sequence("step", step as i64);
+        self.rec.set_duration_secs("sim_time", time);
+    }
+
+    fn note(&self, text: String, level: &str) {
+        let _ = self.rec.log(
+            paths::LOG_RECORDER,
+            &rerun::TextLog::new(text).with_level(level),
+        );
+    }
+
+    /// Handles one message. Never fails on bad input: undecodable messages are counted.
+    pub fn handle(&mut self, msg: Incoming) -> anyhow::Result<()> {
+        match msg {
+            Incoming::State(b) => match decode::<State>(&b) {
+                Ok(s) => {
+                    self.counts.states += 1;
+                    if self.pending.contains_key(&s.step)
+                        || self.next_step.is_some_and(|n| s.step < n)
+                    {
+                        self.counts.duplicates += 1;
+                    } else {
+                        self.pending.insert(s.step, s);
+                    }
+                    self.drain(false)?;
+                }
+                Err(_) => self.counts.rejected += 1,
+            },
+            Incoming::Events(b) => match decode::<Events>(&b) {
+                Ok(e) => self.log_events(&e)?,
+                Err(_) => self.counts.rejected += 1,
+            },
+            Incoming::Metrics(b) => match decode::<Metrics>(&b) {
+                Ok(m) => self.log_metrics(&m)?,
+                Err(_) => self.counts.rejected += 1,
+            },
+            Incoming::Prediction(b) => match decode::<Prediction>(&b) {
+                Ok(p) => self.set_prediction(p),
+                Err(_) => self.counts.rejected += 1,
+            },
+            Incoming::Status(b) => match decode::<Status>(&b) {
+                Ok(s) => self.log_status(&s)?,
+                Err(_) => self.counts.rejected += 1,
+            },
+        }
+        Ok(())
+    }
+
+    /// Adjusts decimation to the backlog of the inbox (`backlog` messages waiting) and records
+    /// `dropped` messages lost by the callbacks so far.
+    pub fn pace(&mut self, backlog: usize, dropped: u64) {
+        if dropped > self.counts.dropped {
+            self.note(
+                format!(
+                    "{} messages dropped so far because the recorder fell behind",
+                    dropped
+                ),
+                rerun::TextLogLevel::WARN,
+            );
+            self.counts.dropped = dropped;
+        }
+        let before = self.every;
+        if backlog > 256 && self.every < 1024 {
+            self.every *= 2;
+        } else if backlog < 16 && self.every > self.opts.every.max(1) {
+            self.every = (self.every / 2).max(self.opts.every.max(1));
+        }
+        if self.every != before {
+            let level = if self.every > before {
+                rerun::TextLogLevel::WARN
+            } else {
+                rerun::TextLogLevel::INFO
+            };
+            self.note(
+                format!(
+                    "recorder {} behind: recording the fields of every {}th step (requested every {}), backlog {} messages",
+                    if self.every > before { "fell" } else { "caught up, no longer" },
+                    self.every,
+                    self.opts.every,
+                    backlog
+                ),
+                level,
+            );
+            let _ = self.rec.log(
+                "recorder/decimation",
+                &rerun::Scalars::single(self.every as f64),
+            );
+        }
+    }
+
+    /// Flushes if the last flush is older than the flush interval.
+    pub fn maybe_flush(&mut self) {
+        if self.last_flush.elapsed() >= self.opts.flush_every {
+            let _ = self.rec.flush_with_timeout(Duration::from_secs(2));
+            self.last_flush = Instant::now();
+        }
+    }
+
+    /// Records every pending state (end of run or shutdown) and flushes.
+    pub fn finish(&mut self) -> anyhow::Result<()> {
+        self.drain(true)?;
+        if self.heat_rows > 0 {
+            self.log_heat_block()?;
+        }
+        self.rec
+            .flush_blocking()
+            .map_err(|e| anyhow::anyhow!("cannot flush the recording: {e}"))?;
+        Ok(())
+    }
+
+    /// Emits pending states in step order; holds a few back to reorder late arrivals.
+    fn drain(&mut self, all: bool) -> anyhow::Result<()> {
+        while let Some((&step, _)) = self.pending.iter().next() {
+            let contiguous = self.next_step.is_none_or(|n| step == n);
+            if !(all || contiguous || self.pending.len() > 32) {
+                break;
+            }
+            let s = self.pending.remove(&step).expect("present");
+            self.next_step = Some(step + 1);
+            self.log_state(&s)?;
+        }
+        Ok(())
+    }
+
+    fn log_state(&mut self, s: &State) -> anyhow::Result<()> {
+        let n = s.u.len();
+        self.set_time(s.step, s.time);
+        if self.lane_nodes.is_empty() || self.last_stuck.len() != n {
+            let lanes = self.opts.lanes.clamp(1, n);
+            self.lane_nodes = (0..lanes).map(|j| j * n / lanes).collect();
+            self.last_stuck = vec![false; n];
+            for &i in &self.lane_nodes {
+                self.rec.log(
+                    paths::lane(i),
+                    &rerun::StateChange::single(if s.stuck[i] { "stick" } else { "slip" }),
+                )?;
+            }
+        } else {
+            for &i in &self.lane_nodes {
+                if s.stuck[i] != self.last_stuck[i] {
+                    self.rec.log(
+                        paths::lane(i),
+                        &rerun::StateChange::single(if s.stuck[i] { "stick" } else { "slip" }),
+                    )?;
+                }
+            }
+        }
+        self.last_stuck.clone_from(&s.stuck);
+        if s.last {
+            self.saw_last_state = true;
+        }
+        // tail displacement and per-step scalars: every state
+        self.rec.log(
+            format!("{}/plant", paths::TAIL),
+            &rerun::Scalars::single(s.u[0]),
+        )?;
+        self.log_tail_prediction(s.step, s.time, s.u[0])?;
+        self.rec.log(
+            format!("{}/mean_speed", paths::STEP),
+            &rerun::Scalars::single(s.mean_speed),
+        )?;
+        if s.step % self.every != 0 && !s.last {
+            return Ok(());
+        }
+        self.counts.recorded_steps += 1;
+        let mean = s.u.iter().sum::<f64>() / n as f64;
+        let du: Vec<f32> = s.u.iter().map(|u| (u - mean) as f32).collect();
+        let v: Vec<f32> = s.vel.iter().map(|&v| v as f32).collect();
+        self.rec
+            .log(paths::FIELD_U, &rerun::BarChart::new(du.clone()))?;
+        self.rec.log(paths::FIELD_V, &rerun::BarChart::new(v))?;
+        // body in space: points at x + u, classed stick / slip
+        let dx = 1.0 / n as f64;
+        let length = self.length;
+        let positions: Vec<[f32; 2]> =
+            s.u.iter()
+                .enumerate()
+                .map(|(i, u)| [((i as f64 * dx * length) + u) as f32, 0.0])
+                .collect();
+        let classes: Vec<u16> = s.stuck.iter().map(|&st| u16::from(st)).collect();
+        self.rec.log(
+            paths::BODY,
+            &rerun::Points2D::new(positions)
+                .with_class_ids(classes)
+                .with_radii([0.3 * (length / n as f64) as f32]),
+        )?;
+        // heatmap block
+        if self.heat_rows == 0 {
+            self.heat_start_step = s.step;
+            self.heat.clear();
+        }
+        self.heat.extend_from_slice(&du);
+        self.heat_rows += 1;
+        if self.heat_rows >= self.opts.heatmap_rows {
+            self.log_heat_block()?;
+        }
+        if s.last {
+            self.finished_if_ready();
+        }
+        Ok(())
+    }
+
+    fn log_heat_block(&mut self) -> anyhow::Result<()> {
+        let cols = self.heat.len() / self.heat_rows.max(1);
+        let data = rerun::TensorData::new(
+            vec![self.heat_rows as u64, cols as u64],
+            rerun::datatypes::TensorBuffer::F32(std::mem::take(&mut self.heat).into()),
+        );
+        self.rec.log(
+            paths::HEATMAP,
+            &rerun::Tensor::new(data).with_dim_names(["time (recorded steps)", "node"]),
+        )?;
+        self.heat_rows = 0;
+        Ok(())
+    }
+
+    fn log_tail_prediction(&mut self, step: u64, time: f64, u0: f64) -> anyhow::Result<()> {
+        let Some(series) = &self.tail_series else {
+            return Ok(());
+        };
+        let value = series.at(time);
+        match self.tail_offset {
+            Some(offset) => self.rec.log(
+                format!("{}/paper", paths::TAIL),
+                &rerun::Scalars::single(offset + value),
+            )?,
+            None => {
+                // Align the drift's origin once the plant has settled: the offset is the mean
+                // difference over the first steady forcing period.
+                if self.settled {
+                    self.tail_buffer.push((step, time, u0 - value));
+                    let period = std::f64::consts::TAU / series.omega;
+                    let first = self.tail_buffer[0].1;
+                    if time - first >= period {
+                        let offset = self.tail_buffer.iter().map(|x| x.2).sum::<f64>()
+                            / self.tail_buffer.len() as f64;
+                        self.tail_offset = Some(offset);
+                        let series = series.clone();
+                        for &(st, t, _) in &std::mem::take(&mut self.tail_buffer) {
+                            self.rec.set_time_sequence("step", st as i64);
+                            self.rec.set_duration_secs("sim_time", t);
+                            self.rec.log(
+                                format!("{}/paper", paths::TAIL),
+                                &rerun::Scalars::single(offset + series.at(t)),
+                            )?;
+                        }
+                        self.set_time(step, time);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn set_prediction(&mut self, p: Prediction) {
+        self.tail_series = p
+            .models
+            .iter()
+            .find(|m| m.model == "paper")
+            .and_then(|m| m.tail.clone());
+        self.tail_offset = None;
+        self.tail_buffer.clear();
+        self.settled = false;
+        let text = p
+            .models
+            .iter()
+            .map(|m| {
+                format!(
+                    "{}: V = {}, P = {}, M = {}, sigma = {} ({})",
+                    m.model,
+                    opt(m.velocity),
+                    opt(m.power),
+                    opt(m.mileage),
+                    opt(m.max_stress),
+                    m.validity
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        self.note(
+            format!(
+                "controller {} ({}) applies f0 = {:.4} N, k = {:.4} rad/m, omega = {:.4} rad/s from step {}: {text}",
+                p.controller, p.policy, p.wave.f0, p.wave.k, p.wave.omega, p.step
+            ),
+            rerun::TextLogLevel::INFO,
+        );
+        self.predictions = p.models;
+    }
+
+    fn log_metrics(&mut self, m: &Metrics) -> anyhow::Result<()> {
+        self.counts.metric_blocks += 1;
+        if m.steady {
+            self.settled = true;
+        }
+        self.rec.set_time_sequence("step", m.step as i64);
+        self.rec.set_duration_secs("sim_time", m.end);
+        let plant = [
+            m.velocity,
+            m.power,
+            m.mileage,
+            m.max_stress,
+            m.stuck_fraction,
+        ];
+        for (name, value) in paths::METRICS.iter().zip(plant) {
+            if value.is_finite() {
+                self.rec.log(
+                    paths::metric_series(name, "plant"),
+                    &rerun::Scalars::single(value),
+                )?;
+            }
+        }
+        for p in &self.predictions {
+            let values = [
+                p.velocity,
+                p.power,
+                p.mileage,
+                p.max_stress,
+                p.stuck_fraction,
+            ];
+            for (name, value) in paths::METRICS.iter().zip(values) {
+                if let Some(v) = value.filter(|v| v.is_finite()) {
+                    self.rec.log(
+                        paths::metric_series(name, &p.model),
+                        &rerun::Scalars::single(v),
+                    )?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn log_events(&mut self, e: &Events) -> anyhow::Result<()> {
+        self.rec.set_time_sequence("step", e.step as i64);
+        self.rec.set_duration_secs("sim_time", e.time);
+        for ep in &e.episodes {
+            self.counts.episodes += 1;
+            let text = format!(
+                "node {} stuck {:.4} s ({:.4}-{:.4} s), left {}",
+                ep.node,
+                ep.duration,
+                ep.start,
+                ep.end,
+                if ep.direction > 0 {
+                    "forward"
+                } else {
+                    "backward"
+                }
+            );
+            self.rec.log(
+                paths::LOG_EPISODES,
+                &rerun::TextLog::new(text).with_level(rerun::TextLogLevel::DEBUG),
+            )?;
+        }
+        Ok(())
+    }
+
+    fn log_status(&mut self, s: &Status) -> anyhow::Result<()> {
+        let level = match s.state.as_str() {
+            "failed" => rerun::TextLogLevel::ERROR,
+            "stopped" => rerun::TextLogLevel::WARN,
+            _ => rerun::TextLogLevel::INFO,
+        };
+        self.rec.log(
+            paths::LOG_STATUS,
+            &rerun::TextLog::new(format!(
+                "{} {}: {} (step {}): {}",
+                s.role, s.id, s.state, s.step, s.message
+            ))
+            .with_level(level),
+        )?;
+        if s.role == "plant" && matches!(s.state.as_str(), "finished" | "failed" | "stopped") {
+            self.finished = true;
+        }
+        Ok(())
+    }
+
+    fn finished_if_ready(&mut self) {
+        if self.saw_last_state {
+            self.finished = true;
+        }
+    }
+}
+
+fn opt(x: Option<f64>) -> String {
+    x.map_or("-".into(), |v| format!("{v:.4e}"))
+}

@@ -1,0 +1,75 @@
+//! Checkpoints of a co-simulation run: everything needed to resume it bit-identically.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crawler_protocol::Rejections;
+
+use crate::framing;
+use crate::plant::PlantState;
+use crate::scenario::Scenario;
+use crate::simulate::EpisodeLog;
+
+const MAGIC: &[u8; 8] = b"CRWLCKPT";
+const VERSION: u32 = 1;
+
+/// A stopped run: the plant's full state at the start of communication step `state.macro_step`
+/// (no actuation for that step applied yet), and the run's bookkeeping.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// Run id.
+    pub run_id: String,
+    /// The scenario the plant was built from.
+    pub scenario: Scenario,
+    /// The run ends at this communication step.
+    pub last_step: u64,
+    /// The plant's state.
+    pub state: PlantState,
+    /// Episodes recorded for the report so far.
+    pub log: EpisodeLog,
+    /// Actuation rejected so far.
+    pub rejections: Rejections,
+    /// Why the run stopped.
+    pub reason: String,
+}
+
+impl Checkpoint {
+    /// Writes the checkpoint atomically (a temporary file renamed over `path`).
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        let bytes = framing::encode(MAGIC, VERSION, self);
+        let tmp = path.with_extension("ckpt.tmp");
+        std::fs::write(&tmp, &bytes)
+            .map_err(|e| anyhow::anyhow!("cannot write checkpoint {}: {e}", tmp.display()))?;
+        std::fs::rename(&tmp, path)
+            .map_err(|e| anyhow::anyhow!("cannot write checkpoint {}: {e}", path.display()))?;
+        Ok(())
+    }
+
+    /// Reads and checks a checkpoint (format, checksum, consistency of state and scenario).
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
+        let bytes = std::fs::read(path)
+            .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
+        let c: Checkpoint = framing::decode(MAGIC, VERSION, "crawler checkpoint", &bytes)
+            .map_err(|e| anyhow::anyhow!("invalid checkpoint {}: {e}", path.display()))?;
+        crawler_protocol::validate_run_id(&c.run_id)?;
+        c.scenario.plant.validate()?;
+        if c.state.params != c.scenario.plant {
+            anyhow::bail!(
+                "invalid checkpoint {}: the plant state does not belong to its scenario",
+                path.display()
+            );
+        }
+        if c.state.macro_step > c.last_step {
+            anyhow::bail!(
+                "invalid checkpoint {}: step {} is past the last step {}",
+                path.display(),
+                c.state.macro_step,
+                c.last_step
+            );
+        }
+        // The state's values are validated when the plant is restored from it.
+        crate::plant::Plant::from_state(&c.state)?;
+        Ok(c)
+    }
+}

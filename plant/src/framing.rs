@@ -1,0 +1,53 @@
+//! Framed binary files and blobs: magic bytes, format version, CRC-32, MessagePack payload.
+//!
+//! Layout: 8 magic bytes, format version (u32 little endian), CRC-32 of the payload (u32 little
+//! endian), then the payload (MessagePack with named fields). Used for serialized plant states
+//! and co-simulation checkpoints, so that a truncated or corrupted file is refused, not read.
+
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+/// Why a framed blob was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct FrameError(pub String);
+
+/// Frames `value` with `magic` and `version`.
+pub fn encode<T: Serialize>(magic: &[u8; 8], version: u32, value: &T) -> Vec<u8> {
+    let payload = rmp_serde::to_vec_named(value).expect("framed values serialize");
+    let mut out = Vec::with_capacity(payload.len() + 16);
+    out.extend_from_slice(magic);
+    out.extend_from_slice(&version.to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    out.extend_from_slice(&payload);
+    out
+}
+
+/// Checks magic, version and checksum, then decodes. `what` names the content in errors.
+pub fn decode<T: DeserializeOwned>(
+    magic: &[u8; 8],
+    version: u32,
+    what: &str,
+    bytes: &[u8],
+) -> Result<T, FrameError> {
+    if bytes.len() < 16 || &bytes[..8] != magic {
+        return Err(FrameError(format!(
+            "not a {what} (the magic bytes {} are missing)",
+            String::from_utf8_lossy(magic)
+        )));
+    }
+    let got = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
+    if got != version {
+        return Err(FrameError(format!(
+            "{what} has format version {got}, this build reads {version}"
+        )));
+    }
+    let crc = u32::from_le_bytes(bytes[12..16].try_into().expect("4 bytes"));
+    let payload = &bytes[16..];
+    if crc32fast::hash(payload) != crc {
+        return Err(FrameError(format!(
+            "{what} checksum mismatch (truncated or corrupted)"
+        )));
+    }
+    rmp_serde::from_slice(payload).map_err(|e| FrameError(format!("{what} payload: {e}")))
+}

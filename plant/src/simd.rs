@@ -1,0 +1,169 @@
+//! Four f64 lanes for the kernel: a thin wrapper over [`wide::f64x4`].
+//!
+//! `wide` maps each operation to one AVX instruction when the crate is built with AVX enabled
+//! (the workspace targets x86-64-v3, see `.cargo/config.toml`) and to SSE2 pairs otherwise.
+//! Only correctly rounded IEEE operations and exact selects are used (no fused multiply-add),
+//! so every build gives the same bits, and a lane computes exactly what the scalar code does.
+
+use std::ops::{Add, BitOr, BitXor, Mul, Sub};
+
+use wide::{f64x4, CmpLe, CmpNe};
+
+/// Four f64 lanes.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct F4(pub f64x4);
+
+impl F4 {
+    /// All lanes `x`.
+    #[inline(always)]
+    pub fn splat(x: f64) -> Self {
+        F4(f64x4::splat(x))
+    }
+
+    /// The first four values of `x`.
+    #[inline(always)]
+    pub fn load(x: &[f64]) -> Self {
+        F4(f64x4::new([x[0], x[1], x[2], x[3]]))
+    }
+
+    /// Writes the lanes to the first four values of `out`.
+    #[inline(always)]
+    pub fn store(self, out: &mut [f64]) {
+        out[..4].copy_from_slice(&self.0.to_array());
+    }
+
+    /// The lanes.
+    #[inline(always)]
+    pub fn lanes(self) -> [f64; 4] {
+        self.0.to_array()
+    }
+
+    /// Lane-wise `a > b ? a : b` (the `maxpd` semantics, as the scalar code).
+    #[inline(always)]
+    pub fn max(self, o: Self) -> Self {
+        F4(self.0.fast_max(o.0))
+    }
+
+    /// Lane-wise `a < b ? a : b` (the `minpd` semantics, as the scalar code).
+    #[inline(always)]
+    pub fn min(self, o: Self) -> Self {
+        F4(self.0.fast_min(o.0))
+    }
+
+    /// Lane-wise absolute value (clears the sign bit).
+    #[inline(always)]
+    pub fn abs(self) -> Self {
+        F4(self.0.abs())
+    }
+
+    /// The sign bits only (`-0.0` where negative, `+0.0` elsewhere).
+    #[inline(always)]
+    pub fn sign(self) -> Self {
+        F4(self.0 & f64x4::splat(-0.0))
+    }
+
+    /// Lane-wise `1.0` where `self <= o`, else `0.0`.
+    #[inline(always)]
+    pub fn le_as_one(self, o: Self) -> Self {
+        F4(self.0.cmp_le(o.0) & f64x4::ONE)
+    }
+
+    /// Lane-wise `if self <= o { then } else { other }`.
+    #[inline(always)]
+    pub fn select_le(self, o: Self, then: Self, other: Self) -> Self {
+        F4(self.0.cmp_le(o.0).blend(then.0, other.0))
+    }
+
+    /// Horizontal sum in lane order `((l0 + l1) + l2) + l3`.
+    #[inline(always)]
+    pub fn sum(self) -> f64 {
+        let l = self.lanes();
+        ((l[0] + l[1]) + l[2]) + l[3]
+    }
+
+    /// Largest lane (`a > b ? a : b` folded from lane 0).
+    #[inline(always)]
+    pub fn max_lane(self) -> f64 {
+        let l = self.lanes();
+        let m = if l[1] > l[0] { l[1] } else { l[0] };
+        let m = if l[2] > m { l[2] } else { m };
+        if l[3] > m {
+            l[3]
+        } else {
+            m
+        }
+    }
+
+    /// True if any lane is non-zero.
+    #[inline(always)]
+    pub fn any_nonzero(self) -> bool {
+        self.0.cmp_ne(f64x4::ZERO).any()
+    }
+
+    /// Lane 0.
+    #[inline(always)]
+    pub fn first(self) -> f64 {
+        self.lanes()[0]
+    }
+}
+
+impl Add for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn add(self, o: F4) -> F4 {
+        F4(self.0 + o.0)
+    }
+}
+
+impl Sub for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn sub(self, o: F4) -> F4 {
+        F4(self.0 - o.0)
+    }
+}
+
+impl Mul for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn mul(self, o: F4) -> F4 {
+        F4(self.0 * o.0)
+    }
+}
+
+impl BitOr for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn bitor(self, o: F4) -> F4 {
+        F4(self.0 | o.0)
+    }
+}
+
+impl BitXor for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn bitxor(self, o: F4) -> F4 {
+        F4(self.0 ^ o.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn selects_match_the_scalar_semantics() {
+        let a = F4(f64x4::new([1.0, -2.0, 0.0, -0.0]));
+        let z = F4::splat(0.0);
+        assert_eq!(a.max(z).lanes(), [1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(a.le_as_one(z).lanes(), [0.0, 1.0, 1.0, 1.0]);
+        assert_eq!((F4::splat(1.0) | a.sign()).lanes(), [1.0, -1.0, 1.0, -1.0]);
+        assert_eq!(
+            a.select_le(z, F4::splat(7.0), F4::splat(9.0)).lanes(),
+            [9.0, 7.0, 7.0, 7.0]
+        );
+        assert_eq!(F4(f64x4::new([1.0, 5.0, -3.0, 2.0])).max_lane(), 5.0);
+        assert!(F4(f64x4::new([0.0, 0.0, 1.0, 0.0])).any_nonzero());
+        assert!(!z.any_nonzero());
+    }
+}
