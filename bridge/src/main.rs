@@ -212,7 +212,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 while let Ok(reply) = replies.recv() {
                     if let Ok(sample) = reply.result() {
                         if let Ok(info) = decode::<ModelInfo>(&sample.payload().to_bytes()) {
-                            recorder.set_length(info.length);
+                            recorder.set_model(&info)?;
                             model_known = true;
                         }
                     }

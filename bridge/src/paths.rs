@@ -1,7 +1,14 @@
 //! Entity paths of a crawler recording (what tests and users query).
 
-/// Body points at `x + u`, classed stick / slip.
+/// The body in space: `body/points` at `x + u`, `body/exaggerated` at `x + mean u + 10 (u - mean u)`,
+/// classed stick / slip.
 pub const BODY: &str = "body";
+/// Points at `x + u`.
+pub const BODY_POINTS: &str = "body/points";
+/// Points with the deformation magnified ten times (one row below).
+pub const BODY_EXAGGERATED: &str = "body/exaggerated";
+/// How much `body/exaggerated` magnifies the deformation.
+pub const EXAGGERATION: f64 = 10.0;
 /// Displacement field `u(x) - mean u`, one bar per node, m.
 pub const FIELD_U: &str = "fields/u";
 /// Velocity field `v(x)`, one bar per node, m/s.

@@ -98,9 +98,9 @@ pub struct Recorder {
 /// The recording of `application` written to `path`, with the default layout.
 pub fn open_file(path: &Path) -> anyhow::Result<RecordingStream> {
     let rec = rerun::RecordingStreamBuilder::new("crawler")
-        .with_blueprint(crate::layout::blueprint())
         .save(path)
         .map_err(|e| anyhow::anyhow!("cannot write recording {}: {e}", path.display()))?;
+    crate::layout::send(&rec)?;
     Ok(rec)
 }
 
@@ -143,11 +143,23 @@ impl Recorder {
         self.finished && self.pending.is_empty()
     }
 
-    /// Sets the body length (m) from the plant's model description.
-    pub fn set_length(&mut self, length: f64) {
-        if length.is_finite() && length > 0.0 {
-            self.length = length;
+    /// Takes the plant's model description: the body length, and the run's last step, marked at
+    /// once so that the recording's timeline spans the whole run from its first bytes.
+    pub fn set_model(&mut self, info: &crawler_protocol::ModelInfo) -> anyhow::Result<()> {
+        if info.length.is_finite() && info.length > 0.0 {
+            self.length = info.length;
         }
+        let end = info.start_time + info.last_step as f64 * info.step;
+        self.set_time(info.last_step, end);
+        self.rec.log(
+            paths::LOG_RECORDER,
+            &rerun::TextLog::new(format!(
+                "run {} ends at step {} (t = {end} s): {} cells, L = {} m, H = {} s, eps = {}, n_F = {}",
+                info.run, info.last_step, info.cells, info.length, info.step, info.eps, info.n_f
+            ))
+            .with_level(rerun::TextLogLevel::INFO),
+        )?;
+        Ok(())
     }
 
     /// Current decimation.
@@ -367,20 +379,38 @@ impl Recorder {
         self.rec
             .log(paths::FIELD_U, &rerun::BarChart::new(du.clone()))?;
         self.rec.log(paths::FIELD_V, &rerun::BarChart::new(v))?;
-        // body in space: points at x + u, classed stick / slip
-        let dx = 1.0 / n as f64;
+        // body in space: points at x + u, and the deformation magnified below; classed stick / slip
         let length = self.length;
-        let positions: Vec<[f32; 2]> =
+        let dx = length / n as f64;
+        let row = 0.08 * length;
+        let classes: Vec<u16> = s.stuck.iter().map(|&st| u16::from(st)).collect();
+        let radius = [(0.45 * dx).max(0.004 * length) as f32];
+        let points: Vec<[f32; 2]> =
             s.u.iter()
                 .enumerate()
-                .map(|(i, u)| [((i as f64 * dx * length) + u) as f32, 0.0])
+                .map(|(i, u)| [(i as f64 * dx + u) as f32, 0.0])
                 .collect();
-        let classes: Vec<u16> = s.stuck.iter().map(|&st| u16::from(st)).collect();
+        let magnified: Vec<[f32; 2]> =
+            s.u.iter()
+                .enumerate()
+                .map(|(i, u)| {
+                    [
+                        (i as f64 * dx + mean + paths::EXAGGERATION * (u - mean)) as f32,
+                        -row as f32,
+                    ]
+                })
+                .collect();
         self.rec.log(
-            paths::BODY,
-            &rerun::Points2D::new(positions)
+            paths::BODY_POINTS,
+            &rerun::Points2D::new(points)
+                .with_class_ids(classes.clone())
+                .with_radii(radius),
+        )?;
+        self.rec.log(
+            paths::BODY_EXAGGERATED,
+            &rerun::Points2D::new(magnified)
                 .with_class_ids(classes)
-                .with_radii([0.3 * (length / n as f64) as f32]),
+                .with_radii(radius),
         )?;
         // heatmap block
         if self.heat_rows == 0 {
