@@ -59,7 +59,7 @@ pub struct Context {
 }
 
 /// Options common to the built-in policies.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct PolicyOptions {
     /// Wave amplitude, N (default: the scenario's).
     pub f0: Option<f64>,
@@ -77,6 +77,27 @@ pub struct PolicyOptions {
     pub model: Option<ModelChoice>,
     /// `optimal`: grid points per axis.
     pub grid: Option<usize>,
+    /// `optimal`: certify the constraints on the in-process plant (lowering f0 if needed).
+    pub certify: bool,
+    /// `optimal`: relative margin of the certification.
+    pub margin: f64,
+}
+
+impl Default for PolicyOptions {
+    fn default() -> Self {
+        Self {
+            f0: None,
+            k: None,
+            omega: None,
+            alpha: None,
+            sweep: Vec::new(),
+            dwell: None,
+            model: None,
+            grid: None,
+            certify: true,
+            margin: 0.005,
+        }
+    }
 }
 
 impl Context {

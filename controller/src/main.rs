@@ -70,6 +70,12 @@ struct RunArgs {
     /// optimal: grid points per axis.
     #[arg(long)]
     grid: Option<usize>,
+    /// optimal: skip certifying the constraints on the in-process plant.
+    #[arg(long)]
+    no_certify: bool,
+    /// optimal: relative margin kept on every constraint when certifying.
+    #[arg(long, default_value_t = 0.005, allow_hyphen_values = true)]
+    margin: f64,
     /// Seconds to wait for the plant.
     #[arg(long, default_value_t = 60.0)]
     wait_timeout: f64,
@@ -202,6 +208,8 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
         dwell: a.dwell,
         model,
         grid: a.grid,
+        certify: !a.no_certify,
+        margin: a.margin,
     };
     let (tx, rx) = crossbeam_channel::unbounded::<Interrupt>();
     ctrlc::set_handler(move || {

@@ -122,7 +122,9 @@ mod tests {
     #[test]
     fn golden_finds_maxima() {
         let (x, fx) = golden_max(|x| -(x - 0.3).powi(2) + 2.0, 0.0, 1.0, 1e-10);
-        assert!((x - 0.3).abs() < 1e-8);
+        // Near a smooth maximum, f differs by (x - x*)^2: points closer than sqrt(f64::EPSILON)
+        // (1.5e-8) have equal values in f64, so no comparison-based search can do better.
+        assert!((x - 0.3).abs() < 5e-8, "{x}");
         assert!((fx - 2.0).abs() < 1e-12);
     }
 }

@@ -1,1 +1,269 @@
-fn main() {}
+//! `crawler run`: the whole co-simulation in one command.
+//!
+//! Starts the recorder (`crawler-bridge`), the plant (`crawler-plant run`) and the controller
+//! (`crawler-controller run`) as three processes on loopback for one run id, forwards their logs
+//! with a prefix, waits for them, and prints the plant's summary and the controller's table of
+//! predicted against simulated metrics. The recording is left in `--out` (default `crawler.rrd`).
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::time::{Duration, Instant};
+
+use clap::{Args, Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "crawler",
+    version,
+    about = "Runs the soft-crawler co-simulation: plant, controller and recorder"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run plant, controller and bridge on loopback and leave a Rerun recording.
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Scenario TOML file (default: the paper's, embedded).
+    #[arg(long, value_name = "FILE")]
+    scenario: Option<PathBuf>,
+    /// Controller policy (optimal, wave, resonance, sweep, ...).
+    #[arg(long, default_value = "optimal")]
+    policy: String,
+    /// Recording to write.
+    #[arg(long, default_value = "crawler.rrd")]
+    out: PathBuf,
+    /// Run id (default: crawler-<pid>, unique on this machine).
+    #[arg(long)]
+    run_id: Option<String>,
+    /// End time, s (default: the scenario's).
+    #[arg(long)]
+    t_end: Option<f64>,
+    /// Number of cells (default: the scenario's).
+    #[arg(long)]
+    cells: Option<i64>,
+    /// Record the fields of every K-th step.
+    #[arg(long, default_value_t = 4)]
+    every: u64,
+    /// More arguments for the controller (after `--`), e.g. `-- --alpha 0.5`.
+    #[arg(last = true)]
+    controller_args: Vec<String>,
+}
+
+fn main() -> ExitCode {
+    let Cmd::Run(a) = Cli::parse().command;
+    match run(a) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("crawler: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+const BINARIES: [&str; 3] = ["crawler-plant", "crawler-controller", "crawler-bridge"];
+
+/// The directory of the sibling binaries, building them first when run through `cargo run`.
+fn binaries() -> anyhow::Result<PathBuf> {
+    let exe = std::env::current_exe()?;
+    let dir = exe.parent().map(Path::to_path_buf).unwrap_or_default();
+    let missing: Vec<&str> = BINARIES
+        .iter()
+        .copied()
+        .filter(|b| !dir.join(b).is_file())
+        .collect();
+    if missing.is_empty() {
+        return Ok(dir);
+    }
+    let Ok(cargo) = std::env::var("CARGO") else {
+        anyhow::bail!(
+            "{} not found next to {}; build them with: cargo build --release --workspace",
+            missing.join(", "),
+            exe.display()
+        );
+    };
+    eprintln!(
+        "crawler: building {} (first run only) ...",
+        missing.join(", ")
+    );
+    let profile_release = dir.ends_with("release");
+    let mut cmd = Command::new(cargo);
+    cmd.arg("build").arg("--bins");
+    if profile_release {
+        cmd.arg("--release");
+    }
+    for p in ["crawler-plant", "crawler-controller", "crawler-bridge"] {
+        cmd.args(["-p", p]);
+    }
+    let status = cmd.status()?;
+    anyhow::ensure!(status.success(), "building the binaries failed");
+    Ok(dir)
+}
+
+/// Forwards a child's stream line by line with a prefix (stderr), or collects it (stdout).
+fn forward(name: &'static str, stream: impl Read + Send + 'static) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        for line in BufReader::new(stream).lines().map_while(Result::ok) {
+            eprintln!("[{name}] {line}");
+        }
+    })
+}
+
+fn collect(stream: impl Read + Send + 'static) -> std::thread::JoinHandle<String> {
+    std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = BufReader::new(stream).read_to_string(&mut s);
+        s
+    })
+}
+
+struct Proc {
+    name: &'static str,
+    child: Child,
+    out: Option<std::thread::JoinHandle<String>>,
+    err: Option<std::thread::JoinHandle<()>>,
+}
+
+fn spawn(name: &'static str, exe: &Path, args: &[String]) -> anyhow::Result<Proc> {
+    let mut child = Command::new(exe)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| anyhow::anyhow!("cannot start {}: {e}", exe.display()))?;
+    let out = child.stdout.take().map(collect);
+    let err = child.stderr.take().map(|s| forward(name, s));
+    Ok(Proc {
+        name,
+        child,
+        out,
+        err,
+    })
+}
+
+impl Proc {
+    /// Waits up to `timeout`; on timeout sends SIGINT, then kills after a grace period.
+    fn finish(&mut self, timeout: Duration) -> (Option<i32>, String) {
+        let deadline = Instant::now() + timeout;
+        let status = loop {
+            match self.child.try_wait() {
+                Ok(Some(s)) => break Some(s),
+                Ok(None) if Instant::now() < deadline => {
+                    std::thread::sleep(Duration::from_millis(50))
+                }
+                _ => break None,
+            }
+        };
+        let status = status.or_else(|| {
+            eprintln!("crawler: {} still running; asking it to stop", self.name);
+            interrupt(&self.child);
+            let grace = Instant::now() + Duration::from_secs(10);
+            loop {
+                match self.child.try_wait() {
+                    Ok(Some(s)) => break Some(s),
+                    Ok(None) if Instant::now() < grace => {
+                        std::thread::sleep(Duration::from_millis(50))
+                    }
+                    _ => {
+                        let _ = self.child.kill();
+                        break self.child.wait().ok();
+                    }
+                }
+            }
+        });
+        let out = self
+            .out
+            .take()
+            .and_then(|h| h.join().ok())
+            .unwrap_or_default();
+        if let Some(h) = self.err.take() {
+            let _ = h.join();
+        }
+        (status.and_then(|s| s.code()), out)
+    }
+}
+
+fn interrupt(child: &Child) {
+    // SIGINT lets the process finish cleanly (the bridge closes its recording properly).
+    let _ = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status();
+}
+
+fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
+    let dir = binaries()?;
+    let run_id = a
+        .run_id
+        .clone()
+        .unwrap_or_else(|| format!("crawler-{}", std::process::id()));
+    let mut scenario_args: Vec<String> = Vec::new();
+    if let Some(s) = &a.scenario {
+        scenario_args.extend(["--scenario".into(), s.display().to_string()]);
+    }
+    let mut plant_args: Vec<String> = vec!["run".into(), "--run-id".into(), run_id.clone()];
+    plant_args.extend(scenario_args.iter().cloned());
+    if let Some(t) = a.t_end {
+        plant_args.extend(["--t-end".into(), t.to_string()]);
+    }
+    if let Some(n) = a.cells {
+        plant_args.extend(["--cells".into(), n.to_string()]);
+    }
+    plant_args.extend(["--wait-timeout".into(), "120".into()]);
+    let mut ctl_args: Vec<String> = vec![
+        "run".into(),
+        "--run-id".into(),
+        run_id.clone(),
+        "--policy".into(),
+        a.policy.clone(),
+    ];
+    ctl_args.extend(scenario_args.iter().cloned());
+    ctl_args.extend(a.controller_args.iter().cloned());
+    let bridge_args: Vec<String> = vec![
+        "record".into(),
+        "--run-id".into(),
+        run_id.clone(),
+        "--out".into(),
+        a.out.display().to_string(),
+        "--every".into(),
+        a.every.to_string(),
+        "--idle-timeout".into(),
+        "300".into(),
+    ];
+    eprintln!(
+        "crawler: run {run_id}: recorder, plant and controller on loopback; recording to {}",
+        a.out.display()
+    );
+    let mut bridge = spawn("bridge", &dir.join("crawler-bridge"), &bridge_args)?;
+    let mut plant = spawn("plant", &dir.join("crawler-plant"), &plant_args)?;
+    let mut controller = spawn("controller", &dir.join("crawler-controller"), &ctl_args)?;
+    let day = Duration::from_secs(24 * 3600);
+    let (plant_code, plant_out) = plant.finish(day);
+    let (ctl_code, ctl_out) = controller.finish(Duration::from_secs(30));
+    let (bridge_code, _) = bridge.finish(Duration::from_secs(60));
+    println!("{}", plant_out.trim_end());
+    println!();
+    println!("{}", ctl_out.trim_end());
+    println!();
+    let ok = plant_code == Some(0) && ctl_code == Some(0) && bridge_code == Some(0);
+    if bridge_code == Some(0) {
+        println!(
+            "recording: {} (open it with: rerun {})",
+            a.out.display(),
+            a.out.display()
+        );
+    }
+    if ok {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("crawler: exit codes: plant {plant_code:?}, controller {ctl_code:?}, bridge {bridge_code:?}");
+        Ok(ExitCode::FAILURE)
+    }
+}

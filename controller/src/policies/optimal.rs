@@ -13,6 +13,8 @@ pub struct Optimal {
     /// The optimiser's result.
     pub report: OptimizeReport,
     wave: Wave,
+    /// Plant runs that certified the constraints, if asked for.
+    pub certification: Option<crate::verify::Certification>,
 }
 
 pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
@@ -44,14 +46,33 @@ pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
         },
     )?;
     let o = &report.optimum;
-    let wave = Wave {
+    let mut wave = Wave {
         f0: o.f0,
         k: o.k,
         omega: o.omega,
         phase: 0.0,
     };
     wave.validate_for_body(ctx.length, ctx.cells)?;
-    Ok(Box::new(Optimal { report, wave }))
+    // Make the constraints hold on a plant like the one driven (same body, grid and step), not
+    // only in the model: lower f0 with a few in-process plant runs until they hold with a margin.
+    let certification = if ctx.options.certify {
+        let c = crate::verify::certify(&ctx.scenario, &problem, o, ctx.options.margin, 8)?;
+        anyhow::ensure!(
+            c.certified,
+            "the optimum could not be certified on the plant within {} runs (last f0 = {} N)",
+            c.runs.len(),
+            c.f0
+        );
+        wave.f0 = c.f0;
+        Some(c)
+    } else {
+        None
+    };
+    Ok(Box::new(Optimal {
+        report,
+        wave,
+        certification,
+    }))
 }
 
 impl Controller for Optimal {
@@ -74,6 +95,14 @@ impl Controller for Optimal {
             o.alpha,
             o.binding,
             o.prediction.velocity.unwrap_or(f64::NAN)
-        )
+        ) + &match &self.certification {
+            Some(c) => format!(
+                "; certified on the plant ({} runs): f0 = {:.4} N holds every constraint with {:.1} % margin",
+                c.runs.len(),
+                c.f0,
+                100.0 * c.margin
+            ),
+            None => "; not certified on the plant".to_string(),
+        }
     }
 }

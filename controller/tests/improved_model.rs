@@ -1,0 +1,138 @@
+//! The improved reduced model against converged plant runs, sticking regimes included.
+
+use crawler_controller::travelling_wave::TravellingWaveModel;
+use crawler_controller::{Model, OperatingPoint};
+use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_plant::simulate::{simulate, SimulateOptions};
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+/// (eps, f0, alpha, cells): cells chosen so that the plant itself is converged to well under 1 %.
+const POINTS: &[(f64, f64, f64, i64)] = &[
+    (0.1, 0.5, 0.3, 256),
+    (0.1, 0.5, 0.5, 256),
+    (0.1, 0.5, 1.0, 256),
+    (0.3, 0.5, 2.0, 256),
+    (0.5, 0.5, 1.5, 256),
+    (1.0, 0.5, 0.5, 512),
+    (1.0, 0.5, 1.0, 512),
+    (1.0, 0.2, 0.5, 512),  // sticks ~43 % of the time
+    (1.0, 0.2, 1.8, 512),  // sticks ~42 % of the time, above resonance
+    (1.0, 0.1, 0.5, 2048), // sticks ~69 % of the time; the plant converges slowly here
+];
+
+#[test]
+fn predicts_speed_power_and_stress_within_one_percent_of_the_plant() {
+    let model = TravellingWaveModel::default();
+    for &(eps, f0, alpha, cells) in POINTS {
+        let s = Scenario::load(
+            None,
+            &Overrides {
+                eps: Some(eps),
+                f0: Some(f0),
+                alpha: Some(alpha),
+                cells: Some(cells),
+                t_end: Some(10.0),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let plant = simulate(&s, SimulateOptions::default()).unwrap();
+        let p = model.predict(&OperatingPoint::of(&s));
+        let (v, pw, sg) = (p.velocity.unwrap(), p.power.unwrap(), p.max_stress.unwrap());
+        println!(
+            "eps {eps} f0 {f0} alpha {alpha}: V {:+.3}% P {:+.3}% sigma {:+.3}% stuck {:.3}/{:.3}",
+            100.0 * (v / plant.velocity - 1.0),
+            100.0 * (pw / plant.power - 1.0),
+            100.0 * (sg / plant.max_stress - 1.0),
+            p.stuck_fraction.unwrap(),
+            plant.stuck_fraction
+        );
+        assert!(
+            rel(v, plant.velocity) < 0.01,
+            "eps {eps} f0 {f0} alpha {alpha}: V {v} vs plant {}",
+            plant.velocity
+        );
+        assert!(
+            rel(pw, plant.power) < 0.01,
+            "eps {eps} f0 {f0} alpha {alpha}: P {pw} vs plant {}",
+            plant.power
+        );
+        assert!(
+            rel(sg, plant.max_stress) < 0.01,
+            "eps {eps} f0 {f0} alpha {alpha}: sigma {sg} vs plant {}",
+            plant.max_stress
+        );
+        if plant.stuck_fraction > 0.3 {
+            assert!(
+                rel(p.stuck_fraction.unwrap(), plant.stuck_fraction) < 0.05,
+                "stuck fraction"
+            );
+            assert!(
+                rel(
+                    p.episodes_per_node_per_period.unwrap(),
+                    plant.events.per_node_per_period
+                ) < 0.05,
+                "episodes"
+            );
+        }
+    }
+}
+
+#[test]
+fn satisfies_the_steady_identity_and_bound() {
+    let model = TravellingWaveModel::default();
+    for &(eps, f0, alpha, _) in POINTS {
+        let s = Scenario::load(
+            None,
+            &Overrides {
+                eps: Some(eps),
+                f0: Some(f0),
+                alpha: Some(alpha),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let op = OperatingPoint::of(&s);
+        let p = model.predict(&op);
+        let f = op.friction;
+        let v = p.velocity.unwrap();
+        let identity = f.band() * (f.n_f - p.mean_friction_selection.unwrap()) / f.viscous;
+        assert!(
+            (v - identity).abs() < 1e-3 * v.abs(),
+            "V {v} vs identity {identity}"
+        );
+        assert!(v.abs() <= f.speed_bound());
+    }
+}
+
+#[test]
+fn refines_towards_a_limit_as_the_march_is_refined() {
+    let s = Scenario::load(
+        None,
+        &Overrides {
+            eps: Some(1.0),
+            f0: Some(0.2),
+            alpha: Some(0.5),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let op = OperatingPoint::of(&s);
+    let v: Vec<f64> = [512, 2048, 8192]
+        .iter()
+        .map(|&steps| {
+            TravellingWaveModel {
+                steps,
+                ..Default::default()
+            }
+            .predict(&op)
+            .velocity
+            .unwrap()
+        })
+        .collect();
+    assert!((v[1] - v[2]).abs() < (v[0] - v[2]).abs(), "{v:?}");
+    assert!(rel(v[1], v[2]) < 2e-3, "{v:?}");
+}
