@@ -14,6 +14,7 @@
 
 pub mod client;
 pub mod controller;
+pub mod figures;
 pub mod operating_point;
 pub mod optimizer;
 pub mod paper_model;

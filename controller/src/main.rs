@@ -31,8 +31,22 @@ enum Command {
     Optimize(OptimizeArgs),
     /// List the registered policies.
     Policies,
+    /// Write the paper's Fig. 5 and Fig. 6 (paper model beside the improved model) as PNG and CSV.
+    Figures(FiguresArgs),
     /// Control a co-simulation run over zenoh: answer every plant state with an actuation.
     Run(RunArgs),
+}
+
+#[derive(Args)]
+struct FiguresArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    /// Output directory.
+    #[arg(long, default_value = "figures")]
+    out: std::path::PathBuf,
+    /// Points per axis of the omega-k planes with the improved model.
+    #[arg(long, default_value_t = 36)]
+    improved_points: usize,
 }
 
 #[derive(Args)]
@@ -244,6 +258,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(_) => unreachable!("handled in main"),
         Command::Predict(a) => predict(a),
         Command::Optimize(a) => optimize(a),
+        Command::Figures(a) => {
+            let scenario = a.scenario.load()?;
+            anyhow::ensure!(
+                (4..=400).contains(&a.improved_points),
+                "invalid --improved-points = {}: allowed 4 to 400",
+                a.improved_points
+            );
+            let opts = crawler_controller::figures::FigureOptions {
+                plane_points_improved: a.improved_points,
+                ..Default::default()
+            };
+            for f in crawler_controller::figures::write_figures(&scenario, &a.out, opts)? {
+                println!("{}", f.display());
+            }
+            Ok(())
+        }
         Command::Policies => {
             for (name, help, _) in REGISTRY {
                 println!("{name:<10} {help}");

@@ -15,8 +15,9 @@
 //! constant `s` (`z -> z*(s)` at rate `c_v / |kappa|`), marching in the direction in which the
 //! homogeneous part decays. The set-valued `s` is resolved at the end of each step by the same
 //! closed form as the plant ([`crawler_plant::friction::select`]), so stick phases (`w = 0`) are
-//! exact. The periodic solution is the fixed point of the one-period map of `z`, which is
-//! piecewise affine with slope `prod E` (0 once a stick occurs): Newton converges in a few sweeps.
+//! exact; a sign change of `w` inside a step is located by interpolation and the rest of the step
+//! continues from `w = 0`, so the one-period map of `z` is continuous (a contraction). Its fixed
+//! point, the periodic solution, is found by bracketed regula falsi.
 
 use std::f64::consts::TAU;
 
@@ -58,7 +59,6 @@ pub struct Profile {
 #[derive(Debug, Clone, Copy, Default)]
 struct Sweep {
     end_z: f64,
-    slope: f64,
     sum_w: f64,
     sum_s: f64,
     sum_w_cos: f64,
@@ -88,7 +88,13 @@ impl TravellingWaveModel {
         let dir = if kappa < 0.0 { -1.0 } else { 1.0 };
         let g = (1.0 - e) * op.friction.band() / cv;
         let push = (1.0 - e) * op.friction.band() * op.friction.n_f / cv;
+        let lambda = if kappa == 0.0 {
+            f64::INFINITY
+        } else {
+            cv / kappa.abs()
+        };
         Setup {
+            lambda,
             p,
             q,
             e,
@@ -109,13 +115,15 @@ impl TravellingWaveModel {
         let (ch, sh) = ((s.dir * s.h).cos(), (s.dir * s.h).sin());
         let (mut c, mut sn) = (1.0f64, 0.0f64);
         let mut z = z0;
+        let mut wp_prev = s.p; // w_p at xi = 0
         let mut out = Sweep {
-            slope: 1.0,
             max_tension_y: f64::NEG_INFINITY,
             min_w: f64::INFINITY,
             max_w: f64::NEG_INFINITY,
             ..Default::default()
         };
+        let band = op.friction.band();
+        let cv = op.friction.viscous;
         let ae = op.body.stiffness();
         let w_wave = op.wave;
         let min_run = (self.min_stick_periods * self.steps as f64).ceil().max(1.0) as usize;
@@ -134,17 +142,39 @@ impl TravellingWaveModel {
                 c = nc;
             }
             let wp = s.p * c + s.q * sn;
-            let b = wp + s.e * z + s.push;
-            let sel = select(b, s.g);
-            let w = sel.velocity;
+            let w_old = wp_prev + z;
+            let (w, s_mean, stuck) = if w_old != 0.0 && s.e > 0.0 {
+                // Sliding: integrate exactly with the current sign; if w changes sign inside the
+                // step, locate the crossing and continue from w = 0 with the closed-form stick rule.
+                let s0 = w_old.signum();
+                let z_star = -band * (s0 - op.friction.n_f) / cv;
+                let w_trial = wp + z_star + (z - z_star) * s.e;
+                if w_trial * s0 > 0.0 {
+                    (w_trial, s0, false)
+                } else {
+                    let theta = w_old / (w_old - w_trial);
+                    let xi_cross = s.dir * (j as f64 - 1.0 + theta) * s.h;
+                    let wp_cross = s.p * xi_cross.cos() + s.q * xi_cross.sin();
+                    let e_rest = (-s.lambda * (1.0 - theta) * s.h).exp();
+                    let g_rest = (1.0 - e_rest) * band / cv;
+                    let b = wp + e_rest * (-wp_cross) + g_rest * op.friction.n_f;
+                    let sel = select(b, g_rest);
+                    (sel.velocity, theta * s0 + (1.0 - theta) * sel.s, sel.stuck)
+                }
+            } else {
+                // At rest (or at exact resonance, where w follows the force pointwise): implicit step.
+                let b = wp + s.e * z + s.push;
+                let sel = select(b, s.g);
+                (sel.velocity, sel.s, sel.stuck)
+            };
             z = w - wp;
-            out.slope = if sel.stuck { 0.0 } else { out.slope * s.e };
+            wp_prev = wp;
             out.sum_w += w;
             out.min_w = out.min_w.min(w);
             out.max_w = out.max_w.max(w);
-            out.sum_s += sel.s;
+            out.sum_s += s_mean;
             out.sum_w_cos += w * c;
-            if sel.stuck {
+            if stuck {
                 out.stuck += 1;
                 run += 1;
             } else {
@@ -160,13 +190,13 @@ impl TravellingWaveModel {
                 ended_first_slide = true;
                 run = 0;
             }
-            // tension / f0-scale: T = A_c E k y + f0 sin xi with y = (V - w)/omega; V added later.
+            // tension without the V term: T = A_c E k y + f0 sin xi with y = (V - w) / omega
             let tension_wo_v = -ae * w_wave.k * w / w_wave.omega + w_wave.f0 * sn;
             out.max_tension_y = out.max_tension_y.max(tension_wo_v);
             if let Some(pr) = profile.as_deref_mut() {
                 pr.xi.push((s.dir * j as f64 * s.h).rem_euclid(TAU));
                 pr.velocity.push(w);
-                pr.selection.push(sel.s);
+                pr.selection.push(s_mean);
             }
         }
         // A stick run that wraps around the period boundary counts once.
@@ -181,22 +211,65 @@ impl TravellingWaveModel {
     }
 
     /// Solves the periodic problem; returns the final sweep (and fills `profile` if given).
+    ///
+    /// The period map `z0 -> z_end` is continuous and a contraction (slope in [0, 1)), so the
+    /// residual `r(z0) = z_end - z0` is decreasing: its root is bracketed and found by Illinois
+    /// regula falsi.
     fn solve(&self, op: &OperatingPoint, profile: Option<&mut Profile>) -> Option<(Setup, Sweep)> {
         let s = self.setup(op);
-        let mut z0 = 0.0;
-        let scale = (s.p.abs() + s.q.abs() + s.g + 1e-300).max(1e-300);
-        for _ in 0..60 {
-            let sw = self.sweep(op, &s, z0, None);
-            let r = sw.end_z - z0;
-            if r.abs() <= 1e-13 * scale {
-                break;
+        let scale = (s.p.abs() + s.q.abs() + op.friction.band() / op.friction.viscous).max(1e-300);
+        let tol = 1e-13 * scale;
+        let r = |z0: f64| self.sweep(op, &s, z0, None).end_z - z0;
+        let mut root = 0.0;
+        let r0 = r(root);
+        if r0.abs() > tol {
+            // Newton-like first step for a contraction with slope in [0, 1): z_end itself.
+            let (mut lo, mut flo) = (0.0, r0);
+            let mut hi = r0;
+            let mut fhi = r(hi);
+            let mut widen = 0;
+            while fhi.signum() == flo.signum() && fhi.abs() > tol && widen < 60 {
+                lo = hi;
+                flo = fhi;
+                hi += 2.0 * (hi - root).abs().max(scale * 1e-9) * flo.signum();
+                fhi = r(hi);
+                widen += 1;
             }
-            // Newton on the piecewise-affine period map z0 -> z_end (slope in [0, 1)).
-            z0 += r / (1.0 - sw.slope);
+            if fhi.abs() <= tol {
+                root = hi;
+            } else if fhi.signum() == flo.signum() {
+                return None;
+            } else {
+                let mut side = 0i8;
+                root = lo;
+                for _ in 0..200 {
+                    let m = (lo * fhi - hi * flo) / (fhi - flo);
+                    let fm = r(m);
+                    root = m;
+                    if fm.abs() <= tol || (hi - lo).abs() <= 1e-15 * scale {
+                        break;
+                    }
+                    if fm.signum() == flo.signum() {
+                        lo = m;
+                        flo = fm;
+                        if side == -1 {
+                            fhi *= 0.5;
+                        }
+                        side = -1;
+                    } else {
+                        hi = m;
+                        fhi = fm;
+                        if side == 1 {
+                            flo *= 0.5;
+                        }
+                        side = 1;
+                    }
+                }
+            }
         }
-        let sw = self.sweep(op, &s, z0, profile);
-        let r = sw.end_z - z0;
-        (r.abs() <= 1e-9 * scale && sw.sum_w.is_finite()).then_some((s, sw))
+        let sw = self.sweep(op, &s, root, profile);
+        let res = sw.end_z - root;
+        (res.abs() <= 1e-9 * scale && sw.sum_w.is_finite()).then_some((s, sw))
     }
 
     /// The steady velocity profile over one period.
@@ -213,6 +286,7 @@ impl TravellingWaveModel {
 
 #[derive(Debug, Clone, Copy)]
 struct Setup {
+    lambda: f64,
     p: f64,
     q: f64,
     e: f64,
