@@ -171,6 +171,24 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
             Incoming::Status,
         )?,
     ];
+    // Plant liveliness goes through its own unbounded channel: it must never be dropped.
+    let (plant_tx, plant_rx) = crossbeam_channel::unbounded::<Incoming>();
+    let plant_keys = keys.clone();
+    let _plants = session
+        .liveliness()
+        .declare_subscriber(keys.alive_all(Role::Plant))
+        .history(true)
+        .callback(move |sample| {
+            if sample.kind() == zenoh::sample::SampleKind::Put {
+                if let Some(pid) =
+                    plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
+                {
+                    let _ = plant_tx.send(Incoming::PlantUp(pid.to_string()));
+                }
+            }
+        })
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
     let id = crawler_transport::process_id();
     let _token = session
         .liveliness()
@@ -189,6 +207,11 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     let interrupted = loop {
         crossbeam_channel::select! {
             recv(stop_rx) -> _ => break true,
+            recv(plant_rx) -> msg => {
+                if let Ok(msg) = msg {
+                    recorder.handle(msg)?;
+                }
+            },
             recv(rx) -> msg => {
                 if let Ok(msg) = msg {
                     recorder.handle(msg)?;

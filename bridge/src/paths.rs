@@ -53,3 +53,18 @@ pub const METRICS: [&str; 5] = [
     "max_stress",
     "stuck_fraction",
 ];
+
+/// The plant's final report: `summary/<metric>` scalars and the JSON document at `summary`.
+pub const SUMMARY_ROOT: &str = "summary";
+
+/// The metrics of the final report recorded as scalars.
+pub const SUMMARY: [&str; 8] = [
+    "velocity",
+    "power",
+    "mileage",
+    "max_stress",
+    "max_strain",
+    "stuck_fraction",
+    "mean_friction_selection",
+    "dissipation",
+];

@@ -25,6 +25,8 @@ pub enum Incoming {
     Prediction(Vec<u8>),
     /// `crawler/<run>/status/*`.
     Status(Vec<u8>),
+    /// The liveliness token of a plant appeared (its id).
+    PlantUp(String),
 }
 
 /// Recorder settings.
@@ -93,6 +95,8 @@ pub struct Recorder {
     finished: bool,
     saw_last_state: bool,
     length: f64,
+    plant_id: Option<String>,
+    last_step_time: (u64, f64),
 }
 
 /// The recording of `application` written to `path`, with the default layout.
@@ -128,6 +132,8 @@ impl Recorder {
             finished: false,
             saw_last_state: false,
             length: 1.0,
+            plant_id: None,
+            last_step_time: (0, 0.0),
         };
         me.log_static()?;
         Ok(me)
@@ -252,6 +258,11 @@ impl Recorder {
                 Ok(s) => self.log_status(&s)?,
                 Err(_) => self.counts.rejected += 1,
             },
+            Incoming::PlantUp(id) => {
+                if self.plant_id.is_none() {
+                    self.plant_id = Some(id);
+                }
+            }
         }
         Ok(())
     }
@@ -335,6 +346,7 @@ impl Recorder {
     fn log_state(&mut self, s: &State) -> anyhow::Result<()> {
         let n = s.u.len();
         self.set_time(s.step, s.time);
+        self.last_step_time = (s.step, s.time);
         if self.lane_nodes.is_empty() || self.last_stuck.len() != n {
             let lanes = self.opts.lanes.clamp(1, n);
             self.lane_nodes = (0..lanes).map(|j| j * n / lanes).collect();
@@ -596,9 +608,41 @@ impl Recorder {
             ))
             .with_level(level),
         )?;
-        if s.role == "plant" && matches!(s.state.as_str(), "finished" | "failed" | "stopped") {
+        // Only the plant whose liveliness token we saw ends the recording.
+        let from_plant = s.role == "plant" && self.plant_id.as_deref() == Some(s.id.as_str());
+        if s.role == "plant" && !from_plant {
+            self.counts.rejected += 1;
+            return Ok(());
+        }
+        if from_plant && s.state == "finished" {
+            if let Some(summary) = &s.summary {
+                self.log_summary(summary)?;
+            }
+        }
+        if from_plant && matches!(s.state.as_str(), "finished" | "failed" | "stopped") {
             self.finished = true;
         }
+        Ok(())
+    }
+
+    /// The plant's final report: its steady metrics as scalars under `summary/`, and the JSON.
+    fn log_summary(&mut self, json: &str) -> anyhow::Result<()> {
+        let (step, time) = self.last_step_time;
+        self.set_time(step, time);
+        if let Ok(v) = serde_json::from_str::<serde_json::Value>(json) {
+            for key in paths::SUMMARY {
+                if let Some(x) = v.get(key).and_then(|x| x.as_f64()) {
+                    self.rec.log(
+                        format!("{}/{key}", paths::SUMMARY_ROOT),
+                        &rerun::Scalars::single(x),
+                    )?;
+                }
+            }
+        }
+        self.rec.log(
+            paths::SUMMARY_ROOT,
+            &rerun::TextDocument::new(json.to_string()),
+        )?;
         Ok(())
     }
 

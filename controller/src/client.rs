@@ -227,7 +227,8 @@ pub fn predictions(ctx: &Context, wave: Wave) -> Vec<ModelPrediction> {
 }
 
 enum Event {
-    PlantDown,
+    PlantUp(String),
+    PlantDown(String),
     PlantStatus(Status),
 }
 
@@ -352,12 +353,17 @@ fn serve(
         .declare_publisher(keys.prediction())
         .wait()
         .map_err(z)?;
+    let plant_keys = keys.clone();
     let _plant_alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all(Role::Plant))
+        .history(true)
         .callback(move |s| {
-            if s.kind() == SampleKind::Delete {
-                let _ = ev_tx.send(Event::PlantDown);
+            if let Some(pid) = plant_keys.id_of_alive_key(Role::Plant, s.key_expr().as_str()) {
+                let _ = ev_tx.send(match s.kind() {
+                    SampleKind::Put => Event::PlantUp(pid.to_string()),
+                    SampleKind::Delete => Event::PlantDown(pid.to_string()),
+                });
             }
         })
         .wait()
@@ -374,7 +380,12 @@ fn serve(
     let mut last_predictions = Vec::new();
     let mut answered = 0u64;
     let plant_summary: Option<serde_json::Value>;
-    let mut finished = false;
+    // The plant is the process whose liveliness token we see; statuses from any other id are
+    // ignored (a stray publisher cannot end the run for us), and so are states for another
+    // controller (if no state ever comes for us, we report who has the run).
+    let mut plant_id: Option<String> = None;
+    let mut other_controller: Option<String> = None;
+    let mut ignored = 0u64;
     let deadline_idle = opts.wait_timeout.max(Duration::from_secs(60));
     let mut last_seen = Instant::now();
     loop {
@@ -384,8 +395,16 @@ fn serve(
                 return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit_code: 130 });
             }
             recv(ev_rx) -> ev => match ev {
-                Ok(Event::PlantDown) if !finished => {
+                Ok(Event::PlantUp(pid)) => {
+                    if plant_id.is_none() {
+                        plant_id = Some(pid);
+                    }
+                }
+                Ok(Event::PlantDown(pid)) if plant_id.as_deref() == Some(pid.as_str()) => {
                     return Ok(ClientOutcome::Ended { reason: "the plant left the run".into(), exit_code: 3 });
+                }
+                Ok(Event::PlantStatus(st)) if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" => {
+                    ignored += 1;
                 }
                 Ok(Event::PlantStatus(st)) => match st.state.as_str() {
                     "finished" => {
@@ -405,27 +424,27 @@ fn serve(
                 let state: State = match decode(&bytes) {
                     Ok(s) => s,
                     Err(e) => {
-                        eprintln!("crawler-controller: ignoring an invalid state: {e}");
+                        ignored += 1;
+                        if ignored <= 5 {
+                            eprintln!("crawler-controller: ignoring an invalid state: {e}");
+                        }
                         continue;
                     }
                 };
+                if state.controller != id {
+                    if !state.controller.is_empty() {
+                        other_controller = Some(state.controller.clone());
+                    }
+                    ignored += 1;
+                    continue; // for another controller, or before we joined
+                }
                 last_seen = Instant::now();
-                if !state.controller.is_empty() && state.controller != id {
-                    return Ok(ClientOutcome::Ended {
-                        reason: format!("run {} already has controller {}", keys.run(), state.controller),
-                        exit_code: 1,
-                    });
-                }
-                if state.controller.is_empty() {
-                    continue; // not joined yet
-                }
                 if state.u.len() != ctx.cells {
-                    eprintln!("crawler-controller: ignoring a state with {} cells (the plant has {})", state.u.len(), ctx.cells);
+                    ignored += 1;
                     continue;
                 }
                 if state.last {
-                    finished = true;
-                    continue;
+                    continue; // the plant's finished status ends the run
                 }
                 let obs = Observation {
                     step: state.step,
@@ -468,15 +487,19 @@ fn serve(
             },
             default(Duration::from_millis(500)) => {
                 if last_seen.elapsed() > deadline_idle {
-                    return Ok(ClientOutcome::Ended {
-                        reason: format!("no state from the plant for {:.0} s", deadline_idle.as_secs_f64()),
-                        exit_code: 4,
-                    });
+                    let reason = match &other_controller {
+                        Some(c) => format!("run {} already has controller {c}", keys.run()),
+                        None => format!("no state from the plant for {:.0} s", deadline_idle.as_secs_f64()),
+                    };
+                    return Ok(ClientOutcome::Ended { reason, exit_code: 4 });
                 }
             },
         }
     }
     publish_status("finished", &format!("answered {answered} steps"), answered);
+    if ignored > 0 {
+        eprintln!("crawler-controller: ignored {ignored} messages (invalid, or not from this run's plant)");
+    }
     Ok(ClientOutcome::Finished(Box::new(FinalSummary {
         policy: policy.name().to_string(),
         wave: last_wave.map(|w| WaveMsg {
