@@ -226,7 +226,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
             break false;
         }
         if !model_known && Instant::now() >= next_query {
-            next_query = Instant::now() + Duration::from_secs(1);
+            next_query = Instant::now() + Duration::from_millis(200);
             if let Ok(replies) = session
                 .get(keys.model())
                 .timeout(Duration::from_millis(200))
@@ -237,6 +237,12 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                         if let Ok(info) = decode::<ModelInfo>(&sample.payload().to_bytes()) {
                             recorder.set_model(&info)?;
                             model_known = true;
+                            // Our subscriptions reached the plant before this reply did (same link,
+                            // in order): from here on nothing the plant publishes is missed.
+                            eprintln!(
+                                "crawler-bridge: plant found ({} cells, last step {}); recording every state from now on",
+                                info.cells, info.last_step
+                            );
                         }
                     }
                 }

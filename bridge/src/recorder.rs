@@ -97,6 +97,7 @@ pub struct Recorder {
     length: f64,
     plant_id: Option<String>,
     last_step_time: (u64, f64),
+    run_last_step: Option<u64>,
 }
 
 /// The recording of `application` written to `path`, with the default layout.
@@ -134,6 +135,7 @@ impl Recorder {
             length: 1.0,
             plant_id: None,
             last_step_time: (0, 0.0),
+            run_last_step: None,
         };
         me.log_static()?;
         Ok(me)
@@ -146,7 +148,8 @@ impl Recorder {
 
     /// True once the plant reported the end of the run and its last state was recorded.
     pub fn finished(&self) -> bool {
-        self.finished && self.pending.is_empty()
+        // what is still buffered is written by finish()
+        self.finished
     }
 
     /// Takes the plant's model description: the body length, and the run's last step, marked at
@@ -155,6 +158,7 @@ impl Recorder {
         if info.length.is_finite() && info.length > 0.0 {
             self.length = info.length;
         }
+        self.run_last_step = Some(info.last_step);
         let end = info.start_time + info.last_step as f64 * info.step;
         self.set_time(info.last_step, end);
         self.rec.log(
@@ -229,6 +233,10 @@ impl Recorder {
     pub fn handle(&mut self, msg: Incoming) -> anyhow::Result<()> {
         match msg {
             Incoming::State(b) => match decode::<State>(&b) {
+                Ok(s) if self.run_last_step.is_some_and(|last| s.step > last) => {
+                    // beyond the end of the run: not from this run's plant
+                    self.counts.rejected += 1;
+                }
                 Ok(s) => {
                     self.counts.states += 1;
                     if self.pending.contains_key(&s.step)

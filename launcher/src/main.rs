@@ -107,11 +107,22 @@ fn binaries() -> anyhow::Result<PathBuf> {
     Ok(dir)
 }
 
-/// Forwards a child's stream line by line with a prefix (stderr), or collects it (stdout).
-fn forward(name: &'static str, stream: impl Read + Send + 'static) -> std::thread::JoinHandle<()> {
+/// Forwards a child's stream line by line with a prefix, and signals the first line that
+/// contains `needle` (if any).
+fn forward(
+    name: &'static str,
+    stream: impl Read + Send + 'static,
+    needle: Option<(&'static str, std::sync::mpsc::Sender<()>)>,
+) -> std::thread::JoinHandle<()> {
     std::thread::spawn(move || {
+        let mut needle = needle;
         for line in BufReader::new(stream).lines().map_while(Result::ok) {
             eprintln!("[{name}] {line}");
+            if needle.as_ref().is_some_and(|(n, _)| line.contains(n)) {
+                if let Some((_, tx)) = needle.take() {
+                    let _ = tx.send(());
+                }
+            }
         }
     })
 }
@@ -131,7 +142,12 @@ struct Proc {
     err: Option<std::thread::JoinHandle<()>>,
 }
 
-fn spawn(name: &'static str, exe: &Path, args: &[String]) -> anyhow::Result<Proc> {
+fn spawn(
+    name: &'static str,
+    exe: &Path,
+    args: &[String],
+    needle: Option<(&'static str, std::sync::mpsc::Sender<()>)>,
+) -> anyhow::Result<Proc> {
     let mut child = Command::new(exe)
         .args(args)
         .stdin(Stdio::null())
@@ -140,7 +156,7 @@ fn spawn(name: &'static str, exe: &Path, args: &[String]) -> anyhow::Result<Proc
         .spawn()
         .map_err(|e| anyhow::anyhow!("cannot start {}: {e}", exe.display()))?;
     let out = child.stdout.take().map(collect);
-    let err = child.stderr.take().map(|s| forward(name, s));
+    let err = child.stderr.take().map(|s| forward(name, s, needle));
     Ok(Proc {
         name,
         child,
@@ -241,9 +257,28 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         "crawler: run {run_id}: recorder, plant and controller on loopback; recording to {}",
         a.out.display()
     );
-    let mut bridge = spawn("bridge", &dir.join("crawler-bridge"), &bridge_args)?;
-    let mut plant = spawn("plant", &dir.join("crawler-plant"), &plant_args)?;
-    let mut controller = spawn("controller", &dir.join("crawler-controller"), &ctl_args)?;
+    // Order: plant, then the recorder, and the controller once the recorder is connected to the
+    // plant (the plant publishes nothing before a controller joins, so the recording starts at
+    // step 0).
+    let mut plant = spawn("plant", &dir.join("crawler-plant"), &plant_args, None)?;
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let mut bridge = spawn(
+        "bridge",
+        &dir.join("crawler-bridge"),
+        &bridge_args,
+        Some(("plant found", ready_tx)),
+    )?;
+    if ready_rx.recv_timeout(Duration::from_secs(30)).is_err() {
+        eprintln!(
+            "crawler: the recorder did not connect within 30 s; starting the controller anyway"
+        );
+    }
+    let mut controller = spawn(
+        "controller",
+        &dir.join("crawler-controller"),
+        &ctl_args,
+        None,
+    )?;
     let day = Duration::from_secs(24 * 3600);
     let (plant_code, plant_out) = plant.finish(day);
     let (ctl_code, ctl_out) = controller.finish(Duration::from_secs(30));

@@ -426,6 +426,16 @@ impl RawScenario {
             ));
         }
         wave.validate_for_body(length, plant.numerics.cells)?;
+        let needed = plant.numerics.settle + wave.period();
+        if t_end < needed {
+            return Err(ParamError::new(
+                "numerics.t_end",
+                t_end,
+                format!(
+                    ">= settle + one forcing period = {needed:.4} s (the steady metrics average whole periods after the transient)"
+                ),
+            ));
+        }
         self.task.validate()?;
         self.limits.validate()?;
         Ok(Scenario {

@@ -13,7 +13,7 @@ fn stick_slip() -> Scenario {
         eps: Some(1.0),
         f0: Some(0.2),
         alpha: Some(0.5),
-        t_end: Some(3.0),
+        t_end: Some(6.0),
         ..Default::default()
     });
     s.plant.numerics.settle = 1.0;

@@ -1,1 +1,364 @@
-//! End-to-end tests live in `tests/`; this library holds shared helpers.
+//! Helpers for the end-to-end tests: the real binaries, isolated runs, recordings read back.
+//!
+//! Every test run gets its own run id and its own unix socket in a fresh temporary directory, so
+//! tests can run in parallel without seeing each other; every spawned process is killed when its
+//! [`Proc`] is dropped, and every wait is bounded.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::{Duration, Instant};
+
+/// The directory holding the workspace's binaries (next to the test executable's `deps/`).
+pub fn bin_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    let deps = exe.parent().expect("deps dir");
+    deps.parent().expect("profile dir").to_path_buf()
+}
+
+/// Path of one of the project's binaries, building the workspace's binaries if it is missing.
+pub fn bin(name: &str) -> PathBuf {
+    let path = bin_dir().join(name);
+    if !path.is_file() {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let release = bin_dir().ends_with("release");
+        let mut cmd = Command::new(cargo);
+        cmd.args(["build", "--workspace", "--bins"]);
+        if release {
+            cmd.arg("--release");
+        }
+        let status = cmd.status().expect("cargo build");
+        assert!(status.success(), "building the binaries failed");
+    }
+    assert!(path.is_file(), "{} not found", path.display());
+    path
+}
+
+/// The repository's root.
+pub fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_path_buf()
+}
+
+/// The Python of the project's venv (created by scripts/setup-python.sh, which .ci/run calls).
+pub fn python() -> PathBuf {
+    let p = repo_root().join(".venv/bin/python");
+    assert!(
+        p.is_file(),
+        "{} missing: run scripts/setup-python.sh first (it installs the pinned eclipse-zenoh and msgpack)",
+        p.display()
+    );
+    p
+}
+
+static COUNTER: AtomicU32 = AtomicU32::new(0);
+
+/// An isolated run: its own id, its own socket, its own temporary directory.
+pub struct Run {
+    /// Run id.
+    pub id: String,
+    /// Rendezvous endpoint.
+    pub endpoint: String,
+    /// Scratch directory (checkpoints, recordings, logs).
+    pub dir: tempfile::TempDir,
+}
+
+impl Run {
+    /// A fresh run tagged `tag`.
+    pub fn new(tag: &str) -> Self {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let id = format!("{tag}-{}-{n}", std::process::id());
+        let dir = tempfile::Builder::new()
+            .prefix("crw")
+            .tempdir_in("/tmp")
+            .expect("temp dir");
+        let endpoint = format!("unixsock-stream/{}/z.sock", dir.path().display());
+        Self { id, endpoint, dir }
+    }
+
+    /// A path in the run's directory.
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    fn net(&self) -> Vec<String> {
+        vec![
+            "--run-id".into(),
+            self.id.clone(),
+            "--endpoint".into(),
+            self.endpoint.clone(),
+        ]
+    }
+
+    /// `crawler-plant run` with `args` (network flags added).
+    pub fn plant(&self, args: &[&str]) -> Proc {
+        let mut a: Vec<String> = vec!["run".into()];
+        a.extend(self.net());
+        a.extend([
+            "--checkpoint".into(),
+            self.path("plant.ckpt").display().to_string(),
+        ]);
+        a.extend(args.iter().map(|s| s.to_string()));
+        Proc::spawn("plant", &bin("crawler-plant"), &a, self.dir.path())
+    }
+
+    /// `crawler-controller run` with `args` (network flags added).
+    pub fn controller(&self, args: &[&str]) -> Proc {
+        let mut a: Vec<String> = vec!["run".into()];
+        a.extend(self.net());
+        a.extend(args.iter().map(|s| s.to_string()));
+        Proc::spawn(
+            "controller",
+            &bin("crawler-controller"),
+            &a,
+            self.dir.path(),
+        )
+    }
+
+    /// `crawler-bridge record --out FILE` with `args` (network flags added).
+    pub fn bridge(&self, out: &Path, args: &[&str]) -> Proc {
+        let mut a: Vec<String> = vec!["record".into()];
+        a.extend(self.net());
+        a.extend(["--out".into(), out.display().to_string()]);
+        a.extend(args.iter().map(|s| s.to_string()));
+        Proc::spawn("bridge", &bin("crawler-bridge"), &a, self.dir.path())
+    }
+
+    /// The Python example controller with `args`.
+    pub fn python_controller(&self, args: &[&str]) -> Proc {
+        let mut a: Vec<String> = vec![repo_root()
+            .join("examples/python_controller.py")
+            .display()
+            .to_string()];
+        a.extend(self.net());
+        a.extend(args.iter().map(|s| s.to_string()));
+        Proc::spawn("python", &python(), &a, self.dir.path())
+    }
+}
+
+/// A spawned process; killed on drop. Its stdout and stderr go to files.
+pub struct Proc {
+    /// Name for messages.
+    pub name: String,
+    /// The child.
+    pub child: Child,
+    out: PathBuf,
+    err: PathBuf,
+}
+
+/// How a process ended.
+#[derive(Debug)]
+pub struct Ended {
+    /// Exit status.
+    pub status: ExitStatus,
+    /// Everything it printed on stdout.
+    pub stdout: String,
+    /// Everything it printed on stderr.
+    pub stderr: String,
+    /// When it was seen to end.
+    pub at: Instant,
+}
+
+impl Proc {
+    /// Spawns `exe args` in `dir`.
+    pub fn spawn(name: &str, exe: &Path, args: &[String], dir: &Path) -> Self {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let out = dir.join(format!("{name}-{n}.out"));
+        let err = dir.join(format!("{name}-{n}.err"));
+        let child = Command::new(exe)
+            .args(args)
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(&out).expect("stdout file"))
+            .stderr(std::fs::File::create(&err).expect("stderr file"))
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {}: {e}", exe.display()));
+        Self {
+            name: name.to_string(),
+            child,
+            out,
+            err,
+        }
+    }
+
+    /// Process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// What it printed on stderr so far.
+    pub fn stderr_so_far(&self) -> String {
+        std::fs::read_to_string(&self.err).unwrap_or_default()
+    }
+
+    /// Waits at most `timeout`; panics (after killing it) if it does not end.
+    pub fn wait(mut self, timeout: Duration) -> Ended {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().expect("try_wait") {
+                let read = |p: &Path| {
+                    let mut s = String::new();
+                    let _ = std::fs::File::open(p).and_then(|mut f| f.read_to_string(&mut s));
+                    s
+                };
+                return Ended {
+                    status,
+                    stdout: read(&self.out),
+                    stderr: read(&self.err),
+                    at: Instant::now(),
+                };
+            }
+            if Instant::now() >= deadline {
+                let err = self.stderr_so_far();
+                let _ = self.child.kill();
+                panic!(
+                    "{} did not end within {:?}; stderr:\n{err}",
+                    self.name, timeout
+                );
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Sends `signal` (e.g. "-9", "-INT", "-TERM").
+    pub fn signal(&self, signal: &str) {
+        let status = Command::new("kill")
+            .args([signal, &self.pid().to_string()])
+            .status()
+            .expect("kill");
+        assert!(status.success());
+    }
+
+    /// Waits until its stderr contains `needle` (bounded).
+    pub fn wait_for_stderr(&self, needle: &str, timeout: Duration) {
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            if self.stderr_so_far().contains(needle) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        panic!(
+            "{} never printed {needle:?}; stderr:\n{}",
+            self.name,
+            self.stderr_so_far()
+        );
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Parses the JSON printed on stdout.
+pub fn json(stdout: &str) -> serde_json::Value {
+    serde_json::from_str(stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {stdout}"))
+}
+
+/// `crawler-plant simulate --json` with `args`.
+pub fn simulate(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(bin("crawler-plant"))
+        .arg("simulate")
+        .arg("--json")
+        .args(args)
+        .output()
+        .expect("simulate");
+    assert!(
+        out.status.success(),
+        "simulate failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    json(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// What a recording holds, per entity path.
+#[derive(Debug, Default)]
+pub struct Recording {
+    /// Entity path → its data.
+    pub entities: BTreeMap<String, Entity>,
+}
+
+/// One entity of a recording.
+#[derive(Debug, Default, Clone)]
+pub struct Entity {
+    /// Rows logged on the `step` timeline (static rows excluded).
+    pub rows: usize,
+    /// The `step` of each row.
+    pub steps: Vec<i64>,
+    /// Scalar values (Scalars archetype), in row order.
+    pub scalars: Vec<f64>,
+}
+
+impl Recording {
+    /// The entity at `path` (panics with the list of paths if absent).
+    pub fn entity(&self, path: &str) -> &Entity {
+        self.entities.get(path).unwrap_or_else(|| {
+            panic!(
+                "no entity {path} in the recording; it has: {:?}",
+                self.entities.keys().collect::<Vec<_>>()
+            )
+        })
+    }
+}
+
+/// Reads an `.rrd` file with the rerun crate's own reader (its chunk store).
+pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
+    use rerun::dataframe::external::re_chunk_store::{ChunkStore, ChunkStoreConfig};
+    let file = std::fs::File::open(path)?;
+    let stores = ChunkStore::from_rrd_reader(
+        &ChunkStoreConfig::ALL_DISABLED,
+        &mut std::io::BufReader::new(file),
+    )?;
+    let scalars = rerun::Scalars::descriptor_scalars().component;
+    let mut rec = Recording::default();
+    for (id, store) in &stores {
+        if id.kind() != rerun::StoreKind::Recording {
+            continue;
+        }
+        for chunk in store.iter_physical_chunks() {
+            let path = chunk.entity_path().to_string();
+            let path = path.trim_start_matches('/').to_string();
+            let e = rec.entities.entry(path).or_default();
+            let Some(steps) = chunk.timelines().get(&rerun::TimelineName::from("step")) else {
+                continue;
+            };
+            let order: Vec<usize> = {
+                let mut idx: Vec<usize> = (0..chunk.num_rows()).collect();
+                idx.sort_by_key(|&i| steps.times_raw()[i]);
+                idx
+            };
+            let values: Vec<Vec<f64>> = chunk
+                .iter_slices::<f64>(scalars)
+                .map(|s| s.to_vec())
+                .collect();
+            for i in order {
+                e.rows += 1;
+                e.steps.push(steps.times_raw()[i]);
+                if let Some(v) = values.get(i).and_then(|v| v.first()) {
+                    e.scalars.push(*v);
+                }
+            }
+        }
+    }
+    for e in rec.entities.values_mut() {
+        let mut pairs: Vec<(i64, Option<f64>)> = e
+            .steps
+            .iter()
+            .enumerate()
+            .map(|(i, &s)| (s, e.scalars.get(i).copied()))
+            .collect();
+        pairs.sort_by_key(|p| p.0);
+        e.steps = pairs.iter().map(|p| p.0).collect();
+        e.scalars = pairs.iter().filter_map(|p| p.1).collect();
+    }
+    Ok(rec)
+}
