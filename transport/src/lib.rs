@@ -138,8 +138,15 @@ pub fn loopback_config_json(role: Role, network: &Network) -> String {
             vec![network.endpoint.clone()],
         ),
     };
+    // The plant's session is the run's router: it forwards between the controller and the
+    // recorder, so they need no direct link to each other.
+    let mode = if role == Role::Plant {
+        "router"
+    } else {
+        "peer"
+    };
     serde_json::json!({
-        "mode": "peer",
+        "mode": mode,
         "listen": { "endpoints": listen, "exit_on_failure": true },
         "connect": {
             "endpoints": connect,
