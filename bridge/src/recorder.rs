@@ -93,11 +93,11 @@ pub struct Recorder {
     counts: Counts,
     last_flush: Instant,
     finished: bool,
-    saw_last_state: bool,
     length: f64,
     plant_id: Option<String>,
     last_step_time: (u64, f64),
     run_last_step: Option<u64>,
+    last_state_at: Option<Instant>,
 }
 
 /// The recording of `application` written to `path`, with the default layout.
@@ -131,11 +131,11 @@ impl Recorder {
             counts: Counts::default(),
             last_flush: Instant::now(),
             finished: false,
-            saw_last_state: false,
             length: 1.0,
             plant_id: None,
             last_step_time: (0, 0.0),
             run_last_step: None,
+            last_state_at: None,
         };
         me.log_static()?;
         Ok(me)
@@ -148,8 +148,12 @@ impl Recorder {
 
     /// True once the plant reported the end of the run and its last state was recorded.
     pub fn finished(&self) -> bool {
-        // what is still buffered is written by finish()
+        // what is still buffered is written by finish(); after the last state, the plant's final
+        // status (with its summary) is awaited for at most two seconds
         self.finished
+            || self
+                .last_state_at
+                .is_some_and(|t| t.elapsed() > Duration::from_secs(2))
     }
 
     /// Takes the plant's model description: the body length, and the run's last step, marked at
@@ -376,9 +380,6 @@ impl Recorder {
             }
         }
         self.last_stuck.clone_from(&s.stuck);
-        if s.last {
-            self.saw_last_state = true;
-        }
         // tail displacement and per-step scalars: every state
         self.rec.log(
             format!("{}/plant", paths::TAIL),
@@ -443,7 +444,7 @@ impl Recorder {
             self.log_heat_block()?;
         }
         if s.last {
-            self.finished_if_ready();
+            self.last_state_at.get_or_insert_with(Instant::now);
         }
         Ok(())
     }
@@ -652,12 +653,6 @@ impl Recorder {
             &rerun::TextDocument::new(json.to_string()),
         )?;
         Ok(())
-    }
-
-    fn finished_if_ready(&mut self) {
-        if self.saw_last_state {
-            self.finished = true;
-        }
     }
 }
 

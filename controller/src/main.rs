@@ -139,10 +139,10 @@ struct OptimizeArgs {
     #[arg(long, allow_hyphen_values = true)]
     f0_max: Option<f64>,
     /// Bounds on omega, rad/s: MIN,MAX.
-    #[arg(long, value_delimiter = ',', num_args = 2, allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     omega_range: Option<Vec<f64>>,
     /// Bounds on k, rad/m: MIN,MAX.
-    #[arg(long, value_delimiter = ',', num_args = 2, allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     k_range: Option<Vec<f64>>,
     /// Skip the local refinement of the best cell.
     #[arg(long)]
@@ -327,11 +327,18 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
     if let Some(x) = a.f0_max {
         limits.f0_max = x;
     }
+    let pair = |name: &str, r: &Vec<f64>| -> anyhow::Result<[f64; 2]> {
+        anyhow::ensure!(
+            r.len() == 2,
+            "invalid --{name} = {r:?}: allowed MIN,MAX (two numbers)"
+        );
+        Ok([r[0], r[1]])
+    };
     if let Some(r) = &a.omega_range {
-        limits.omega = [r[0], r[1]];
+        limits.omega = pair("omega-range", r)?;
     }
     if let Some(r) = &a.k_range {
-        limits.k = [r[0], r[1]];
+        limits.k = pair("k-range", r)?;
     }
     let problem = Problem {
         body: scenario.plant.body,

@@ -35,9 +35,14 @@ pub struct Checkpoint {
 }
 
 impl Checkpoint {
+    /// The bytes of the checkpoint file.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        framing::encode(MAGIC, VERSION, self)
+    }
+
     /// Writes the checkpoint atomically (a temporary file renamed over `path`).
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let bytes = framing::encode(MAGIC, VERSION, self);
+        let bytes = self.to_bytes();
         let tmp = path.with_extension("ckpt.tmp");
         std::fs::write(&tmp, &bytes)
             .map_err(|e| anyhow::anyhow!("cannot write checkpoint {}: {e}", tmp.display()))?;
@@ -50,20 +55,21 @@ impl Checkpoint {
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         let bytes = std::fs::read(path)
             .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
-        let c: Checkpoint = framing::decode(MAGIC, VERSION, "crawler checkpoint", &bytes)
-            .map_err(|e| anyhow::anyhow!("invalid checkpoint {}: {e}", path.display()))?;
+        Self::from_bytes(&bytes)
+            .map_err(|e| anyhow::anyhow!("invalid checkpoint {}: {e:#}", path.display()))
+    }
+
+    /// Decodes and checks the bytes of a checkpoint file.
+    pub fn from_bytes(bytes: &[u8]) -> anyhow::Result<Self> {
+        let c: Checkpoint = framing::decode(MAGIC, VERSION, "crawler checkpoint", bytes)?;
         crawler_protocol::validate_run_id(&c.run_id)?;
         c.scenario.plant.validate()?;
         if c.state.params != c.scenario.plant {
-            anyhow::bail!(
-                "invalid checkpoint {}: the plant state does not belong to its scenario",
-                path.display()
-            );
+            anyhow::bail!("the plant state does not belong to its scenario");
         }
         if c.state.macro_step > c.last_step {
             anyhow::bail!(
-                "invalid checkpoint {}: step {} is past the last step {}",
-                path.display(),
+                "step {} is past the last step {}",
                 c.state.macro_step,
                 c.last_step
             );

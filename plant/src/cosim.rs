@@ -234,7 +234,7 @@ impl Link {
         let state = publisher(keys.state(), true)?;
         let events = publisher(keys.events(), false)?;
         let metrics = publisher(keys.metrics(), false)?;
-        let status = publisher(keys.status(Role::Plant), false)?;
+        let status = publisher(keys.status(Role::Plant), true)?;
         let (data_tx, data) = bounded::<Vec<u8>>(INBOX);
         let overflow = Arc::new(AtomicU64::new(0));
         let dropped = overflow.clone();

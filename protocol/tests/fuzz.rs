@@ -1,0 +1,207 @@
+//! Property-based fuzzing of every decoder: arbitrary bytes, truncations and mutations of valid
+//! messages never panic, never allocate without bound, and whatever decodes is valid.
+
+use proptest::prelude::*;
+
+use crawler_protocol::*;
+
+fn valid_messages() -> Vec<(&'static str, Vec<u8>)> {
+    let n = 16;
+    let state = State {
+        v: PROTOCOL_VERSION,
+        step: 7,
+        time: 0.007,
+        controller: "abc".into(),
+        u: vec![0.1; n],
+        vel: vec![0.2; n],
+        tension: vec![0.3; n],
+        stuck: vec![true; n],
+        mean_speed: 0.01,
+        input_power: 0.5,
+        last: false,
+    };
+    let wave = WaveMsg {
+        f0: 0.5,
+        k: 6.28,
+        omega: 37.0,
+        phase: 0.0,
+    };
+    let act = Actuation {
+        v: PROTOCOL_VERSION,
+        step: 7,
+        controller: "abc".into(),
+        wave: Some(wave),
+        field: None,
+    };
+    let field = Actuation {
+        v: PROTOCOL_VERSION,
+        step: 7,
+        controller: "abc".into(),
+        wave: None,
+        field: Some(vec![0.0; n]),
+    };
+    let events = Events {
+        v: PROTOCOL_VERSION,
+        step: 3,
+        time: 1.0,
+        episodes: vec![EpisodeMsg {
+            node: 1,
+            start: 0.5,
+            end: 0.6,
+            duration: 0.1,
+            direction: 1,
+        }],
+    };
+    let metrics = Metrics {
+        v: PROTOCOL_VERSION,
+        step: 9,
+        block: 2,
+        steady: true,
+        start: 1.0,
+        end: 1.2,
+        velocity: 0.05,
+        power: 0.1,
+        mileage: 0.5,
+        max_stress: 1000.0,
+        max_strain: 0.01,
+        stuck_fraction: 0.2,
+        mean_friction_selection: 0.1,
+        episodes_per_node_per_period: 1.0,
+    };
+    let status = Status {
+        v: PROTOCOL_VERSION,
+        role: "plant".into(),
+        id: "x".into(),
+        state: "running".into(),
+        message: "ok".into(),
+        step: 1,
+        rejected: Rejections::default(),
+        summary: Some("{}".into()),
+    };
+    let prediction = Prediction {
+        v: PROTOCOL_VERSION,
+        controller: "abc".into(),
+        policy: "wave".into(),
+        step: 0,
+        wave,
+        models: vec![ModelPrediction {
+            model: "paper".into(),
+            velocity: Some(0.04),
+            power: Some(0.1),
+            mileage: None,
+            max_stress: Some(1.0),
+            stuck_fraction: Some(0.0),
+            validity: "valid".into(),
+            tail: Some(Series {
+                omega: 37.0,
+                drift: 0.04,
+                harmonics: vec![(0.01, 0.2)],
+            }),
+        }],
+    };
+    let model = ModelInfo {
+        v: PROTOCOL_VERSION,
+        run: "r".into(),
+        cells: n as u64,
+        length: 1.0,
+        step: 1e-3,
+        start_time: 0.0,
+        last_step: 100,
+        area: 1e-4,
+        density: 0.1,
+        youngs_modulus: 140e3,
+        viscous: 1.0,
+        dry: 1.0,
+        eps: 0.1,
+        n_f: 0.5,
+        settle: 5.0,
+        model_description: "{}".into(),
+    };
+    vec![
+        ("state", encode(&state)),
+        ("actuation", encode(&act)),
+        ("field", encode(&field)),
+        ("events", encode(&events)),
+        ("metrics", encode(&metrics)),
+        ("status", encode(&status)),
+        ("prediction", encode(&prediction)),
+        ("model", encode(&model)),
+    ]
+}
+
+/// Runs every decoder on `bytes`; decoded messages must validate.
+fn decode_all(bytes: &[u8]) {
+    if let Ok(m) = decode::<State>(bytes) {
+        m.validate().unwrap();
+    }
+    if let Ok(m) = decode::<Actuation>(bytes) {
+        m.validate().unwrap();
+    }
+    if let Ok(m) = decode::<Events>(bytes) {
+        m.validate().unwrap();
+    }
+    if let Ok(m) = decode::<Metrics>(bytes) {
+        m.validate().unwrap();
+    }
+    if let Ok(m) = decode::<Status>(bytes) {
+        m.validate().unwrap();
+    }
+    if let Ok(m) = decode::<Prediction>(bytes) {
+        m.validate().unwrap();
+    }
+    if let Ok(m) = decode::<ModelInfo>(bytes) {
+        m.validate().unwrap();
+    }
+}
+
+#[test]
+fn valid_messages_round_trip() {
+    for (name, bytes) in valid_messages() {
+        decode_all(&bytes);
+        match name {
+            "state" => assert!(decode::<State>(&bytes).is_ok()),
+            "actuation" | "field" => assert!(decode::<Actuation>(&bytes).is_ok()),
+            "events" => assert!(decode::<Events>(&bytes).is_ok()),
+            "metrics" => assert!(decode::<Metrics>(&bytes).is_ok()),
+            "status" => assert!(decode::<Status>(&bytes).is_ok()),
+            "prediction" => assert!(decode::<Prediction>(&bytes).is_ok()),
+            _ => assert!(decode::<ModelInfo>(&bytes).is_ok()),
+        }
+    }
+}
+
+#[test]
+fn hostile_headers_are_refused_without_allocating() {
+    // an array32 claiming 2^32-1 float64 values, inside an otherwise plausible actuation
+    let mut b = vec![0x85];
+    b.extend(b"\xa1v\x01\xa4step\x01\xaacontroller\xa1x\xa4wave\xc0\xa5field\xdd\xff\xff\xff\xff");
+    assert!(decode::<Actuation>(&b).is_err());
+    // a bin32 claiming 4 GiB
+    assert!(decode::<State>(b"\xc6\xff\xff\xff\xff").is_err());
+    // nesting 100 000 levels deep
+    assert!(decode::<Status>(&vec![0x91; 100_000]).is_err());
+    // larger than the limit
+    assert!(matches!(
+        decode::<State>(&vec![0u8; MAX_MESSAGE_BYTES + 1]),
+        Err(ProtocolError::TooLarge { .. })
+    ));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
+
+    #[test]
+    fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        decode_all(&bytes);
+    }
+
+    #[test]
+    fn mutated_messages_never_panic(which in 0usize..8, at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<prop::sample::Index>()) {
+        let (_, mut bytes) = valid_messages().swap_remove(which);
+        let i = at.index(bytes.len());
+        bytes[i] = byte;
+        decode_all(&bytes);
+        let c = cut.index(bytes.len() + 1);
+        decode_all(&bytes[..c]);
+    }
+}
