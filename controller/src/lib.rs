@@ -12,6 +12,7 @@
 //!
 //! Units are SI throughout.
 
+pub mod bench;
 pub mod client;
 pub mod controller;
 pub mod figures;

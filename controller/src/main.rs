@@ -31,6 +31,8 @@ enum Command {
     Optimize(OptimizeArgs),
     /// List the registered policies.
     Policies,
+    /// Time the optimiser and the improved model against one plant run (prints JSON).
+    Bench,
     /// Write the paper's Fig. 5 and Fig. 6 (paper model beside the improved model) as PNG and CSV.
     Figures(FiguresArgs),
     /// Control a co-simulation run over zenoh: answer every plant state with an actuation.
@@ -272,6 +274,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             for f in crawler_controller::figures::write_figures(&scenario, &a.out, opts)? {
                 println!("{}", f.display());
             }
+            Ok(())
+        }
+        Command::Bench => {
+            let r = crawler_controller::bench::run(&crawler_plant::scenario::Scenario::paper())?;
+            println!("{}", serde_json::to_string(&r)?);
             Ok(())
         }
         Command::Policies => {

@@ -297,6 +297,11 @@ impl Problem {
     }
 
     fn choose_paper(&self, omega: f64, k: f64) -> Result<Choice, String> {
+        self.choose_paper_with(omega, k, h_peak(self.friction.n_f))
+    }
+
+    /// [`Self::choose_paper`] with the peak of `h`, which depends on `n_F` only, computed once.
+    fn choose_paper_with(&self, omega: f64, k: f64, peak: (f64, f64)) -> Result<Choice, String> {
         let op = self.point(omega, k, 1.0);
         let (alpha, zeta) = (op.alpha(), op.zeta());
         let r0 = r0(alpha, zeta);
@@ -321,9 +326,10 @@ impl Problem {
         }
         // mileage in z = g / f0
         let g = band * f.n_f / (k * zeta * r0 * alpha);
-        let p = PaperModel::power(&op); // P at f0 = 1 N
+        // P at f0 = 1 N: eq. (32), pi zeta alpha R0^2 omega / (k A_c E) per wavelength
+        let p = PI * zeta * alpha * r0 * r0 * omega / (k * ae) * op.wavelengths;
         let kk = self.task.min_mileage() * f.viscous * p * g * g / band;
-        let (z_star, h_star) = h_peak(f.n_f);
+        let (z_star, h_star) = peak;
         if kk > h_star {
             return Err(format!(
                 "mileage: the best amplitude gives M = {:.4e} m/J < D/J0 = {:.4e} m/J",
@@ -447,9 +453,14 @@ impl Problem {
             .iter()
             .flat_map(|&k| omegas.iter().map(move |&w| (w, k)))
             .collect();
+        let peak = h_peak(self.friction.n_f);
         let cells = parallel_map(&points, |&(omega, k)| {
             let alpha = omega / (k * self.body.wave_speed());
-            match self.choose(model, omega, k) {
+            let choice = match model {
+                ModelChoice::Paper => self.choose_paper_with(omega, k, peak),
+                ModelChoice::Improved(_) => self.choose_generic(model, omega, k),
+            };
+            match choice {
                 Ok(c) => Cell {
                     omega,
                     k,
@@ -630,11 +641,18 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Maps `f` over `items` on all cores, preserving order.
+static THREADS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Limits the threads of [`parallel_map`] (0: all cores).
+pub fn set_threads(n: usize) {
+    THREADS.store(n, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Maps `f` over `items` on all cores (or [`set_threads`]), preserving order.
 pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(items.len().max(1));
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let limit = THREADS.load(std::sync::atomic::Ordering::Relaxed);
+    let threads = (if limit == 0 { cores } else { limit.min(cores) }).min(items.len().max(1));
     if threads <= 1 || items.len() < 64 {
         return items.iter().map(&f).collect();
     }

@@ -21,7 +21,7 @@
 
 use std::f64::consts::TAU;
 
-use crawler_plant::friction::select;
+use crawler_plant::friction::{select, select_with_inverse};
 
 use crate::operating_point::OperatingPoint;
 use crate::prediction::{Model, Prediction, Validity};
@@ -38,7 +38,7 @@ pub struct TravellingWaveModel {
 impl Default for TravellingWaveModel {
     fn default() -> Self {
         Self {
-            steps: 2048,
+            steps: 1024,
             min_stick_periods: 0.02,
         }
     }
@@ -59,6 +59,8 @@ pub struct Profile {
 #[derive(Debug, Clone, Copy, Default)]
 struct Sweep {
     end_z: f64,
+    /// d end_z / d z0 (0 once the period restarted from rest or from a crossing).
+    slope: f64,
     sum_w: f64,
     sum_s: f64,
     sum_w_cos: f64,
@@ -93,7 +95,11 @@ impl TravellingWaveModel {
         } else {
             cv / kappa.abs()
         };
+        let band = op.friction.band();
         Setup {
+            inv_g: if g > 0.0 { 1.0 / g } else { 0.0 },
+            c_plus: -band * (1.0 - op.friction.n_f) / cv * (1.0 - e),
+            c_minus: band * (1.0 + op.friction.n_f) / cv * (1.0 - e),
             lambda,
             p,
             q,
@@ -105,7 +111,9 @@ impl TravellingWaveModel {
         }
     }
 
-    fn sweep(
+    /// One period of the march from `z0`. With `FULL = false` only the end state and the map's
+    /// slope are computed (the solver's sweeps); with `FULL = true` every sum as well.
+    fn sweep<const FULL: bool>(
         &self,
         op: &OperatingPoint,
         s: &Setup,
@@ -116,10 +124,13 @@ impl TravellingWaveModel {
         let (mut c, mut sn) = (1.0f64, 0.0f64);
         let mut z = z0;
         let mut wp_prev = s.p; // w_p at xi = 0
+        let w0 = wp_prev + z0;
+        let mut dir = if w0 == 0.0 { 0.0 } else { w0.signum() };
         let mut out = Sweep {
             max_tension_y: f64::NEG_INFINITY,
             min_w: f64::INFINITY,
             max_w: f64::NEG_INFINITY,
+            slope: 1.0,
             ..Default::default()
         };
         let band = op.friction.band();
@@ -142,16 +153,19 @@ impl TravellingWaveModel {
                 c = nc;
             }
             let wp = s.p * c + s.q * sn;
-            let w_old = wp_prev + z;
-            let (w, s_mean, stuck) = if w_old != 0.0 && s.e > 0.0 {
-                // Sliding: integrate exactly with the current sign; if w changes sign inside the
-                // step, locate the crossing and continue from w = 0 with the closed-form stick rule.
-                let s0 = w_old.signum();
-                let z_star = -band * (s0 - op.friction.n_f) / cv;
-                let w_trial = wp + z_star + (z - z_star) * s.e;
-                if w_trial * s0 > 0.0 {
-                    (w_trial, s0, false)
+            // `dir` is the direction of sliding (+1 / -1), or 0 at rest; it only changes at a
+            // crossing located inside a step or when the implicit stick rule releases the point.
+            let (w, z_next, s_mean, stuck) = if dir != 0.0 && s.e > 0.0 {
+                // Sliding: the exact step for constant s is z <- z E + z*(s) (1 - E).
+                let z_new = z * s.e + if dir > 0.0 { s.c_plus } else { s.c_minus };
+                let w_trial = wp + z_new;
+                if w_trial * dir > 0.0 {
+                    out.slope *= s.e;
+                    (w_trial, z_new, dir, false)
                 } else {
+                    // w changed sign inside the step: locate the crossing, continue from w = 0
+                    // with the closed-form stick rule over the rest of the step.
+                    let w_old = wp_prev + z;
                     let theta = w_old / (w_old - w_trial);
                     let xi_cross = s.dir * (j as f64 - 1.0 + theta) * s.h;
                     let wp_cross = s.p * xi_cross.cos() + s.q * xi_cross.sin();
@@ -159,16 +173,28 @@ impl TravellingWaveModel {
                     let g_rest = (1.0 - e_rest) * band / cv;
                     let b = wp + e_rest * (-wp_cross) + g_rest * op.friction.n_f;
                     let sel = select(b, g_rest);
-                    (sel.velocity, theta * s0 + (1.0 - theta) * sel.s, sel.stuck)
+                    // the end state no longer depends on z0 through this step (it restarted at w = 0)
+                    out.slope = 0.0;
+                    (
+                        sel.velocity,
+                        sel.velocity - wp,
+                        theta * dir + (1.0 - theta) * sel.s,
+                        sel.stuck,
+                    )
                 }
             } else {
                 // At rest (or at exact resonance, where w follows the force pointwise): implicit step.
                 let b = wp + s.e * z + s.push;
-                let sel = select(b, s.g);
-                (sel.velocity, sel.s, sel.stuck)
+                let sel = select_with_inverse(b, s.g, s.inv_g);
+                out.slope = if sel.stuck { 0.0 } else { out.slope * s.e };
+                (sel.velocity, sel.velocity - wp, sel.s, sel.stuck)
             };
-            z = w - wp;
+            dir = if stuck || w == 0.0 { 0.0 } else { w.signum() };
+            z = z_next;
             wp_prev = wp;
+            if !FULL {
+                continue;
+            }
             out.sum_w += w;
             out.min_w = out.min_w.min(w);
             out.max_w = out.max_w.max(w);
@@ -218,8 +244,52 @@ impl TravellingWaveModel {
     fn solve(&self, op: &OperatingPoint, profile: Option<&mut Profile>) -> Option<(Setup, Sweep)> {
         let s = self.setup(op);
         let scale = (s.p.abs() + s.q.abs() + op.friction.band() / op.friction.viscous).max(1e-300);
-        let tol = 1e-13 * scale;
-        let r = |z0: f64| self.sweep(op, &s, z0, None).end_z - z0;
+        let tol = 1e-11 * scale;
+        let r = |z0: f64| self.sweep::<false>(op, &s, z0, None).end_z - z0;
+        // Newton with the sweep's slope for the first step (exact while the period only slides
+        // one way or sticks), then secant steps on the residual, which is smooth between
+        // switching patterns: a few sweeps. If it stops contracting, fall back to bracketed
+        // regula falsi from 0.
+        let mut converged = false;
+        let (mut z_prev, mut r_prev) = (0.0, {
+            let sw = self.sweep::<false>(op, &s, 0.0, None);
+            (sw.end_z, sw.slope)
+        });
+        let r0 = r_prev.0;
+        let mut z = r0 / (1.0 - r_prev.1);
+        r_prev.0 = r0;
+        let mut last = r0.abs();
+        if last <= tol {
+            z = 0.0;
+            converged = true;
+        }
+        for _ in 0..12 {
+            if converged {
+                break;
+            }
+            let res = self.sweep::<false>(op, &s, z, None).end_z - z;
+            if res.abs() <= tol {
+                converged = true;
+                break;
+            }
+            if !(res.abs() < 0.7 * last) || !res.is_finite() {
+                break;
+            }
+            last = res.abs();
+            let denom = res - r_prev.0;
+            let next = if denom != 0.0 {
+                z - res * (z - z_prev) / denom
+            } else {
+                z + res
+            };
+            z_prev = z;
+            r_prev.0 = res;
+            z = next;
+        }
+        if converged {
+            let sw = self.sweep::<true>(op, &s, z, profile);
+            return sw.sum_w.is_finite().then_some((s, sw));
+        }
         let mut root = 0.0;
         let r0 = r(root);
         if r0.abs() > tol {
@@ -267,7 +337,7 @@ impl TravellingWaveModel {
                 }
             }
         }
-        let sw = self.sweep(op, &s, root, profile);
+        let sw = self.sweep::<true>(op, &s, root, profile);
         let res = sw.end_z - root;
         (res.abs() <= 1e-9 * scale && sw.sum_w.is_finite()).then_some((s, sw))
     }
@@ -286,6 +356,11 @@ impl TravellingWaveModel {
 
 #[derive(Debug, Clone, Copy)]
 struct Setup {
+    /// 1 / g (0 when g = 0).
+    inv_g: f64,
+    /// z*(s) (1 - E), z* = -eps c_d (s - n_F) / c_v, for s = +1 and s = -1.
+    c_plus: f64,
+    c_minus: f64,
     lambda: f64,
     p: f64,
     q: f64,
