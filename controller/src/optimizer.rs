@@ -297,11 +297,38 @@ impl Problem {
     }
 
     fn choose_paper(&self, omega: f64, k: f64) -> Result<Choice, String> {
-        self.choose_paper_with(omega, k, h_peak(self.friction.n_f))
+        let peak = h_peak(self.friction.n_f);
+        self.choose_paper_with(omega, k, peak, &self.mileage_root(k, peak))
+    }
+
+    /// The mileage condition of the paper's model at wave number `k`: `(K, z_a)`, with `z_a` the
+    /// rising root of `h(z) = K`. `K = (D/J0) c_v P(f0 = 1) g^2 / (eps c_d)` depends on `k` only
+    /// (physics-notes §5), so a grid solves it once per row of k.
+    fn mileage_root(&self, k: f64, peak: (f64, f64)) -> (f64, Option<f64>) {
+        let f = self.friction;
+        let band = f.band();
+        let op = self.point(k * self.body.wave_speed(), k, 1.0);
+        let (alpha, zeta) = (op.alpha(), op.zeta());
+        let r0 = r0(alpha, zeta);
+        let g = band * f.n_f / (k * zeta * r0 * alpha);
+        let p = PI * zeta * alpha * r0 * r0 * op.wave.omega / (k * self.body.stiffness())
+            * op.wavelengths;
+        let kk = self.task.min_mileage() * f.viscous * p * g * g / band;
+        let (z_star, h_star) = peak;
+        (
+            kk,
+            (kk <= h_star && kk.is_finite()).then(|| h_root_rising(f.n_f, kk, z_star)),
+        )
     }
 
     /// [`Self::choose_paper`] with the peak of `h`, which depends on `n_F` only, computed once.
-    fn choose_paper_with(&self, omega: f64, k: f64, peak: (f64, f64)) -> Result<Choice, String> {
+    fn choose_paper_with(
+        &self,
+        omega: f64,
+        k: f64,
+        peak: (f64, f64),
+        row: &(f64, Option<f64>),
+    ) -> Result<Choice, String> {
         let op = self.point(omega, k, 1.0);
         let (alpha, zeta) = (op.alpha(), op.zeta());
         let r0 = r0(alpha, zeta);
@@ -328,8 +355,8 @@ impl Problem {
         let g = band * f.n_f / (k * zeta * r0 * alpha);
         // P at f0 = 1 N: eq. (32), pi zeta alpha R0^2 omega / (k A_c E) per wavelength
         let p = PI * zeta * alpha * r0 * r0 * omega / (k * ae) * op.wavelengths;
-        let kk = self.task.min_mileage() * f.viscous * p * g * g / band;
-        let (z_star, h_star) = peak;
+        let (kk, z_root) = *row;
+        let h_star = peak.1;
         if kk > h_star {
             return Err(format!(
                 "mileage: the best amplitude gives M = {:.4e} m/J < D/J0 = {:.4e} m/J",
@@ -337,7 +364,7 @@ impl Problem {
                 self.task.min_mileage()
             ));
         }
-        let z_a = h_root_rising(f.n_f, kk, z_star);
+        let z_a = z_root.expect("feasible rows have a root");
         let z_cap = g / cap;
         let z = if z_a > z_cap {
             binding = Binding::Mileage;
@@ -454,10 +481,20 @@ impl Problem {
             .flat_map(|&k| omegas.iter().map(move |&w| (w, k)))
             .collect();
         let peak = h_peak(self.friction.n_f);
-        let cells = parallel_map(&points, |&(omega, k)| {
+        let rows: Vec<(f64, Option<f64>)> = match model {
+            ModelChoice::Paper => ks.iter().map(|&k| self.mileage_root(k, peak)).collect(),
+            ModelChoice::Improved(_) => Vec::new(),
+        };
+        let n_omega = omegas.len();
+        let indexed: Vec<(usize, f64, f64)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, &(w, k))| (i / n_omega, w, k))
+            .collect();
+        let cells = parallel_map(&indexed, |&(row, omega, k)| {
             let alpha = omega / (k * self.body.wave_speed());
             let choice = match model {
-                ModelChoice::Paper => self.choose_paper_with(omega, k, peak),
+                ModelChoice::Paper => self.choose_paper_with(omega, k, peak, &rows[row]),
                 ModelChoice::Improved(_) => self.choose_generic(model, omega, k),
             };
             match choice {
