@@ -449,7 +449,7 @@ impl Runner {
         })
     }
 
-    fn publish_state(&mut self, link: &Link) {
+    fn publish_state(&mut self, link: &Link) -> usize {
         let plant = self.slave.plant();
         let n = plant.macro_step();
         self.tension.clear();
@@ -467,7 +467,10 @@ impl Runner {
             input_power: plant.outputs().input_power,
             last: n >= self.last_step,
         };
-        let _ = link.state.put(encode(&s)).wait();
+        let bytes = encode(&s);
+        let len = bytes.len();
+        let _ = link.state.put(bytes).wait();
+        len
     }
 
     fn publish_step_outputs(&self, link: &Link) {
@@ -523,7 +526,7 @@ impl Runner {
 
     fn warn(&mut self, kind: Reject, count: u64, why: &str) {
         // The first few of each kind, then every 1000th: a flood must not flood the terminal.
-        if count <= 5 || count % 1000 == 0 {
+        if count <= 5 || count.is_multiple_of(1000) {
             self.warned += 1;
             eprintln!("crawler-plant: rejected actuation ({kind:?}, #{count}): {why}");
         }
@@ -583,6 +586,8 @@ impl Runner {
         let length = self.plant().params().length;
         let h = self.plant().params().numerics.step;
         let first = self.plant().macro_step();
+        let started = Instant::now();
+        let mut state_bytes;
         let bar = progress_bar(self.last_step, "co-simulating");
         bar.set_position(first);
         link.status(
@@ -594,7 +599,7 @@ impl Runner {
         );
         let mut last_status = Instant::now();
         loop {
-            self.publish_state(link);
+            state_bytes = self.publish_state(link);
             let n = self.plant().macro_step();
             if n >= self.last_step {
                 break;
@@ -640,8 +645,8 @@ impl Runner {
                         }
                     },
                     default(wake.saturating_duration_since(now)) => {
-                        if Instant::now() >= resend {
-                            self.publish_state(link);
+                                                if Instant::now() >= resend {
+                            let _ = self.publish_state(link);
                             resend = Instant::now() + RESEND;
                         }
                     },
@@ -673,7 +678,7 @@ impl Runner {
             }
             self.log.observe(self.slave.plant());
             self.publish_step_outputs(link);
-            if n % 64 == 0 {
+            if n.is_multiple_of(64) {
                 bar.set_position(n + 1);
             }
             if last_status.elapsed() >= STATUS_EVERY {
@@ -688,6 +693,12 @@ impl Runner {
             }
         }
         bar.finish_and_clear();
+        let steps = self.last_step - first;
+        let secs = started.elapsed().as_secs_f64();
+        eprintln!(
+            "crawler-plant: lockstep: {steps} steps in {secs:.3} s ({:.0} steps/s, {state_bytes} bytes per state)",
+            steps as f64 / secs
+        );
         let rep = report(&self.scenario.name, self.plant(), &self.log);
         let summary = rep
             .as_ref()

@@ -1,0 +1,152 @@
+"""Co-simulation throughput: lockstep against a bare zenoh ping-pong, with and without the bridge.
+
+Usage: .venv/bin/python bench/cosim_bench.py [--cells 256] [--steps 20000] [--trials 3]
+
+All in one run, interleaved trial by trial so that machine noise hits every column alike:
+  ping-pong   `transport/examples/pingpong.rs`: the plant's session settings (router, express,
+              blocking congestion control, callback into a channel), a State-sized message out and
+              an Actuation-sized message back, over loopback TCP;
+  lockstep    `crawler-plant run` + `crawler-controller run --policy wave` over loopback TCP;
+  + bridge    the same with `crawler-bridge record --every 1` attached (every state recorded).
+Rates are the plant's own count (`lockstep: N steps in S s`, printed after the run). The table
+gives medians over the trials, the ratios, and the recording's bytes per recorded step against
+the raw field data (u and v as f64, 16 N bytes).
+"""
+
+import argparse
+import os
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TARGET = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
+REL = os.path.join(TARGET, "release")
+# An Actuation with a wave, as the Rust controller sends it (named-field MessagePack).
+ACTUATION_BYTES = 106
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_line(path, pattern, proc, timeout=30.0):
+    end = time.time() + timeout
+    while time.time() < end:
+        with open(path, errors="replace") as f:
+            if re.search(pattern, f.read()):
+                return
+        if proc.poll() is not None:
+            raise RuntimeError(f"process exited early; see {path}")
+        time.sleep(0.02)
+    raise RuntimeError(f"timed out waiting for {pattern!r} in {path}")
+
+
+def pingpong(size, seconds):
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    exe = os.path.join(REL, "examples", "pingpong")
+    pong = subprocess.Popen([exe, "pong", "--endpoint", ep, "--seconds", str(seconds)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        time.sleep(0.3)
+        out = subprocess.run([exe, "ping", "--endpoint", ep, "--size", str(size), "--reply",
+                              str(ACTUATION_BYTES), "--seconds", str(seconds)],
+                             check=True, capture_output=True, text=True, timeout=seconds + 60).stdout
+        m = re.search(r'"per_second":([0-9.eE+-]+)', out)
+        return float(m.group(1))
+    finally:
+        pong.kill()
+        pong.wait()
+
+
+def lockstep(cells, steps, bridge, work):
+    """Returns (steps per second, bytes per state, rrd bytes, recorded steps)."""
+    run = f"bench{os.getpid()}{int(time.time() * 1000) % 100000}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    t_end = steps * 1e-3
+    net = ["--run-id", run, "--endpoint", ep]
+    perr = os.path.join(work, f"{run}-plant.err")
+    berr = os.path.join(work, f"{run}-bridge.err")
+    rrd = os.path.join(work, f"{run}.rrd")
+    procs = []
+    try:
+        plant = subprocess.Popen([os.path.join(REL, "crawler-plant"), "run", *net, "--cells", str(cells),
+                                  "--t-end", str(t_end)],
+                                 stdout=subprocess.DEVNULL, stderr=open(perr, "w"))
+        procs.append(plant)
+        wait_line(perr, "waiting for a controller", plant)
+        if bridge:
+            b = subprocess.Popen([os.path.join(REL, "crawler-bridge"), "record", *net, "--out", rrd,
+                                  "--every", "1"], stdout=subprocess.DEVNULL, stderr=open(berr, "w"))
+            procs.append(b)
+            wait_line(berr, "plant found", b)
+        ctl = subprocess.Popen([os.path.join(REL, "crawler-controller"), "run", *net, "--policy", "wave"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        procs.append(ctl)
+        if plant.wait(timeout=600) != 0:
+            raise RuntimeError(f"plant failed; see {perr}")
+        ctl.wait(timeout=60)
+        with open(perr) as f:
+            m = re.search(r"lockstep: (\d+) steps in ([0-9.]+) s \(\d+ steps/s, (\d+) bytes per state\)", f.read())
+        rate = int(m.group(1)) / float(m.group(2))
+        state_bytes = int(m.group(3))
+        size = recorded = None
+        if bridge:
+            if procs[1].wait(timeout=60) != 0:
+                raise RuntimeError(f"bridge failed; see {berr}")
+            with open(berr) as f:
+                r = re.search(r"\d+ states \((\d+) with fields\)", f.read())
+            recorded = int(r.group(1))
+            size = os.path.getsize(rrd)
+            os.remove(rrd)
+        return rate, state_bytes, size, recorded
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cells", type=int, default=256)
+    ap.add_argument("--steps", type=int, default=20000)
+    ap.add_argument("--trials", type=int, default=3)
+    ap.add_argument("--seconds", type=float, default=4.0, help="duration of each ping-pong")
+    a = ap.parse_args()
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
+                    "-p", "crawler-bridge", "-p", "crawler-transport", "--bins", "--examples"],
+                   check=True, cwd=ROOT)
+    pp, bare, withb, sizes = [], [], [], []
+    with tempfile.TemporaryDirectory() as work:
+        _, state_bytes, _, _ = lockstep(a.cells, 6000, False, work)  # warm-up; learns the state size
+        for t in range(a.trials):
+            pp.append(pingpong(state_bytes, a.seconds))
+            bare.append(lockstep(a.cells, a.steps, False, work)[0])
+            rate, _, size, recorded = lockstep(a.cells, a.steps, True, work)
+            withb.append(rate)
+            sizes.append(size / recorded)
+            print(f"trial {t + 1}: ping-pong {pp[-1]:.0f}/s, lockstep {bare[-1]:.0f}/s, "
+                  f"with bridge {withb[-1]:.0f}/s, {sizes[-1]:.0f} B per recorded step", file=sys.stderr)
+    mp, mb, mw, ms = (statistics.median(x) for x in (pp, bare, withb, sizes))
+    raw = 16 * a.cells
+    print(f"N = {a.cells}, {a.steps} steps per run, State message {state_bytes} B, "
+          f"Actuation {ACTUATION_BYTES} B, medians of {a.trials} trials, loopback TCP")
+    print()
+    print("| | rate (steps or round trips / s) | ratio |")
+    print("| --- | ---: | ---: |")
+    print(f"| bare zenoh ping-pong, same payloads | {mp:.0f} | 1.00 |")
+    print(f"| lockstep plant + controller | {mb:.0f} | {mb / mp:.2f} of ping-pong |")
+    print(f"| lockstep + bridge recording every step | {mw:.0f} | {mw / mb:.2f} of lockstep |")
+    print()
+    print(f"recording: {ms:.0f} B per recorded step; raw u, v fields 16 N = {raw} B; ratio {ms / raw:.2f}")
+
+
+if __name__ == "__main__":
+    main()
