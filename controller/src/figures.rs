@@ -45,6 +45,14 @@ const FONT_PATHS: &[&str] = &[
     "/System/Library/Fonts/Supplemental/Arial.ttf",
 ];
 
+/// A Fig. 5 sweep: name, axis label, the values, the wave at each value.
+type Sweep<'a> = (
+    &'static str,
+    &'static str,
+    Vec<f64>,
+    Box<dyn Fn(f64) -> Wave + Sync + 'a>,
+);
+
 /// Registers a TrueType font for plot text (plotters draws text with it).
 fn register_font() -> anyhow::Result<()> {
     let path = FONT_PATHS
@@ -210,7 +218,7 @@ pub fn write_figures(
         wavelengths: 1.0,
         ..base
     };
-    let sweeps: [(&str, &str, Vec<f64>, Box<dyn Fn(f64) -> Wave + Sync>); 3] = [
+    let sweeps: [Sweep<'_>; 3] = [
         (
             "omega",
             "omega [rad/s]",

@@ -622,7 +622,7 @@ fn infeasibility_summary(cells: &[Cell]) -> String {
             None => reasons.push((key, 1)),
         }
     }
-    reasons.sort_by(|a, b| b.1.cmp(&a.1));
+    reasons.sort_by_key(|r| std::cmp::Reverse(r.1));
     let example = cells
         .iter()
         .find_map(|c| c.reason.clone())
@@ -657,7 +657,7 @@ fn h_root_rising(n_f: f64, target: f64, z_star: f64) -> f64 {
         }
         let d = 2.0 * z * (n_f - 2.0 * z.asin() / PI) - z * z * 2.0 / (PI * (1.0 - z * z).sqrt());
         let mut next = z - f / d;
-        if !(next > lo && next < hi) || !next.is_finite() {
+        if !(next > lo && next < hi && next.is_finite()) {
             next = 0.5 * (lo + hi);
         }
         if (next - z).abs() <= 1e-15 * z.max(1e-300) {

@@ -86,7 +86,7 @@ pub fn r0(alpha: f64, zeta: f64) -> f64 {
 /// (= the paper's Appendix II coefficients times `(-1)^n`, the consistent sign).
 pub fn square_wave_coefficients(gamma: f64, n: u32) -> (f64, f64) {
     let nf = n as f64;
-    let sign = if n % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = if n.is_multiple_of(2) { 1.0 } else { -1.0 };
     let a = 2.0 / (PI * nf) * ((nf * (gamma + PI)).sin() + (nf * gamma).sin());
     let b = 2.0 / (PI * nf) * ((nf * gamma).cos() - (nf * (gamma + PI)).cos());
     (sign * a, sign * b)

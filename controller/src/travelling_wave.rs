@@ -272,7 +272,7 @@ impl TravellingWaveModel {
                 converged = true;
                 break;
             }
-            if !(res.abs() < 0.7 * last) || !res.is_finite() {
+            if !(res.is_finite() && res.abs() < 0.7 * last) {
                 break;
             }
             last = res.abs();

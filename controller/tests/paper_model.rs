@@ -23,7 +23,8 @@ fn dimensionless_groups_match_the_physics_notes() {
     assert!((p.body.wave_speed() - 11.832).abs() < 1e-3);
     assert!((p.omega_n() - 74.34).abs() < 0.01);
     assert!((p.zeta() - 0.1345).abs() < 1e-4);
-    assert!((p.pi_r() - 0.3183).abs() < 1e-4);
+    // pi_r = c_d / (f0 k) = 1 N/m / (0.5 N * 2 pi / m) = 1 / pi
+    assert!((p.pi_r() - 1.0 / std::f64::consts::PI).abs() < 1e-12);
 }
 
 #[test]

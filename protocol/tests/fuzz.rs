@@ -22,7 +22,7 @@ fn valid_messages() -> Vec<(&'static str, Vec<u8>)> {
     };
     let wave = WaveMsg {
         f0: 0.5,
-        k: 6.28,
+        k: 6.25,
         omega: 37.0,
         phase: 0.0,
     };

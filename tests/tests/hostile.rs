@@ -53,10 +53,7 @@ fn act(step: u64, controller: &str) -> Act {
 /// Every kind of bad payload, by name; `me` is the real controller's id (to forge plausible ones).
 fn payloads(me: &str) -> Vec<(&'static str, Vec<u8>)> {
     let valid = pack(&act(1, me));
-    let mut nested = Vec::new();
-    for _ in 0..20_000 {
-        nested.push(0x91); // fixarray of length 1, nested
-    }
+    let nested = vec![0x91u8; 20_000]; // fixarray of length 1, nested 20 000 deep
     let mut huge = vec![0x85]; // map of 5 with an array32 claiming 2^31 values
     huge.extend(
         b"\xa1v\x01\xa4step\x01\xaacontroller\xa1x\xa4wave\xc0\xa5field\xdd\x80\x00\x00\x00",
