@@ -78,9 +78,21 @@ pub struct FinalSummary {
 }
 
 impl FinalSummary {
-    /// A table of predicted against simulated metrics.
+    /// A table of predicted against simulated metrics, headed by what the plant's window was.
+    /// Errors are relative, except for the stuck fraction (a share, often near zero), whose
+    /// difference is given in absolute terms.
     pub fn table(&self) -> String {
-        let mut out = String::new();
+        let steady = self
+            .plant
+            .as_ref()
+            .and_then(|p| p.pointer("/window/steady"))
+            .and_then(|v| v.as_bool());
+        let mut out = match steady {
+            Some(false) => "predicted (steady state of the last wave) against simulated (run averages: \
+                            the actuation changed within the plant's window, so it is not a steady state):\n"
+                .to_string(),
+            _ => "predicted against simulated (plant's steady window):\n".to_string(),
+        };
         if let Some(w) = self.wave {
             out += &format!(
                 "wave: f0 = {:.4} N, k = {:.4} rad/m, omega = {:.4} rad/s\n",
@@ -93,7 +105,7 @@ impl FinalSummary {
                 .and_then(|p| p.get(key))
                 .and_then(|v| v.as_f64())
         };
-        let rows: [(&str, &str, fn(&ModelPrediction) -> Option<f64>); 5] = [
+        let rows: [Row; 5] = [
             ("velocity V", "m/s", |m| m.velocity),
             ("power P", "W", |m| m.power),
             ("mileage M", "m/J", |m| m.mileage),
@@ -122,6 +134,7 @@ impl FinalSummary {
             for m in &self.predictions {
                 let p = get(m);
                 let err = match (p, sim) {
+                    (Some(p), Some(s)) if key == "stuck_fraction" => format!("{:+.4}", p - s),
                     (Some(p), Some(s)) if s != 0.0 => format!("{:+.2}%", 100.0 * (p / s - 1.0)),
                     _ => "-".into(),
                 };
@@ -132,6 +145,13 @@ impl FinalSummary {
         out
     }
 }
+
+/// A row of the comparison table: label, unit, the model value.
+type Row = (
+    &'static str,
+    &'static str,
+    fn(&ModelPrediction) -> Option<f64>,
+);
 
 fn fmt(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{v:.5e}"))
@@ -227,9 +247,9 @@ pub fn predictions(ctx: &Context, wave: Wave) -> Vec<ModelPrediction> {
 }
 
 enum Event {
-    PlantUp(String),
-    PlantDown(String),
-    PlantStatus(Status),
+    Up(String),
+    Down(String),
+    Status(Status),
 }
 
 /// Runs the controller until the run ends.
@@ -264,7 +284,7 @@ fn serve(
         .declare_subscriber(keys.status(Role::Plant))
         .callback(move |s| {
             if let Ok(st) = decode::<Status>(&s.payload().to_bytes()) {
-                let _ = ev2.send(Event::PlantStatus(st));
+                let _ = ev2.send(Event::Status(st));
             }
         })
         .wait()
@@ -361,8 +381,8 @@ fn serve(
         .callback(move |s| {
             if let Some(pid) = plant_keys.id_of_alive_key(Role::Plant, s.key_expr().as_str()) {
                 let _ = ev_tx.send(match s.kind() {
-                    SampleKind::Put => Event::PlantUp(pid.to_string()),
-                    SampleKind::Delete => Event::PlantDown(pid.to_string()),
+                    SampleKind::Put => Event::Up(pid.to_string()),
+                    SampleKind::Delete => Event::Down(pid.to_string()),
                 });
             }
         })
@@ -395,18 +415,17 @@ fn serve(
                 return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit_code: 130 });
             }
             recv(ev_rx) -> ev => match ev {
-                Ok(Event::PlantUp(pid)) => {
-                    if plant_id.is_none() {
+                Ok(Event::Up(pid))
+                    if plant_id.is_none() => {
                         plant_id = Some(pid);
                     }
-                }
-                Ok(Event::PlantDown(pid)) if plant_id.as_deref() == Some(pid.as_str()) => {
+                Ok(Event::Down(pid)) if plant_id.as_deref() == Some(pid.as_str()) => {
                     return Ok(ClientOutcome::Ended { reason: "the plant left the run".into(), exit_code: 3 });
                 }
-                Ok(Event::PlantStatus(st)) if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" => {
+                Ok(Event::Status(st)) if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" => {
                     ignored += 1;
                 }
-                Ok(Event::PlantStatus(st)) => match st.state.as_str() {
+                Ok(Event::Status(st)) => match st.state.as_str() {
                     "finished" => {
                         plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
                         break;

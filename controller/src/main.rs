@@ -243,7 +243,6 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&summary)?);
             } else {
-                println!("predicted against simulated (plant's steady window):");
                 print!("{}", summary.table());
             }
             Ok(ExitCode::SUCCESS)

@@ -203,6 +203,12 @@ pub struct MetricsTracker {
     pub block: Sums,
     /// The steady window so far (complete blocks only).
     pub steady: Sums,
+    /// Blocks starting before this time are the run's initial transient, s (set when the
+    /// tracker is created, kept across restarts).
+    pub run_settle_until: f64,
+    /// Every complete block after the run's initial transient, whatever the actuation did: the
+    /// fallback window when the actuation changed too recently for a steady window.
+    pub run: Sums,
     /// Blocks closed since the caller last drained them.
     #[serde(skip)]
     pub closed: Vec<BlockReport>,
@@ -219,16 +225,26 @@ impl MetricsTracker {
             block_end: origin + block_len,
             block: Sums::empty(origin),
             steady: Sums::empty(origin),
+            run_settle_until: origin + settle,
+            run: Sums::empty(origin),
             closed: Vec::new(),
         }
     }
 
     /// Restarts the block sequence at `origin` (actuation changed): the open block is dropped
-    /// from the steady window and the steady window is cleared.
+    /// from the steady window and the steady window is cleared. The run window keeps every step
+    /// after the run's transient, the open block's included, so it stays contiguous.
     pub fn restart(&mut self, origin: f64, block_len: f64, settle: f64) {
+        if self.after_run_transient(&self.block) {
+            let open = self.block;
+            self.run.merge(&open);
+        }
         let closed = std::mem::take(&mut self.closed);
+        let (run, run_settle_until) = (self.run, self.run_settle_until);
         *self = Self::new(origin, block_len, settle);
         self.closed = closed;
+        self.run = run;
+        self.run_settle_until = run_settle_until;
     }
 
     /// Adds the internal step starting at `t` (s) of length `dt` with reductions `sums`,
@@ -266,11 +282,19 @@ impl MetricsTracker {
         self.block.energy_in += energy;
     }
 
+    fn after_run_transient(&self, block: &Sums) -> bool {
+        block.steps > 0 && block.start >= self.run_settle_until - 1e-12 * self.block_len
+    }
+
     fn close_block(&mut self, t: f64) {
         let steady =
             self.block.start >= self.settle_until - 1e-12 * self.block_len && self.block.steps > 0;
         if steady {
             self.steady.merge(&self.block);
+        }
+        if self.after_run_transient(&self.block) {
+            let block = self.block;
+            self.run.merge(&block);
         }
         self.closed.push(BlockReport {
             index: self.block_index,

@@ -227,7 +227,23 @@ impl Plant {
         self.metrics.block_len
     }
 
-    /// Steady-state metrics over the whole forcing periods after the transient, if any completed.
+    /// Metrics of every step after the run's initial transient (`numerics.settle` after the
+    /// start), whatever the actuation did: averages over a time-varying actuation, not a steady
+    /// state. `None` before the first block after the transient closes.
+    pub fn run_metrics(&self) -> Option<Metrics> {
+        let s = &self.metrics.run;
+        (s.steps > 0).then(|| {
+            s.metrics(
+                self.cells(),
+                self.disc.dt,
+                self.params.body.area,
+                self.metrics.block_len,
+            )
+        })
+    }
+
+    /// Metrics of the steady window: whole forcing periods (blocks) that started at least
+    /// `numerics.settle` after the last change of actuation; `None` before the first one closes.
     pub fn steady_metrics(&self) -> Option<Metrics> {
         let s = &self.metrics.steady;
         (s.steps > 0).then(|| {

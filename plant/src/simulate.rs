@@ -164,15 +164,20 @@ pub struct Report {
     pub parameters: ResolvedParameters,
 }
 
-/// The steady averaging window.
+/// The averaging window of a report.
 #[derive(Debug, Clone, Serialize)]
 pub struct Window {
     /// Start, s.
     pub start: f64,
     /// End, s.
     pub end: f64,
-    /// Whole forcing periods in it.
+    /// Forcing periods (averaging blocks) in it.
     pub periods: f64,
+    /// True for a steady window: whole periods at least `numerics.settle` after the last change
+    /// of actuation. False when the actuation changed later than that (a time-varying
+    /// controller): the window is then every step after the run's first `settle` seconds, and
+    /// the metrics are run averages, not a steady state.
+    pub steady: bool,
 }
 
 impl ResolvedParameters {
@@ -236,7 +241,9 @@ impl EpisodeLog {
 
     /// Takes the episodes that ended in the plant's last communication step, after the transient.
     pub fn observe(&mut self, plant: &Plant) {
-        let settled = plant.metrics_tracker().settle_until;
+        // The run's transient, not the steady window's: a report falls back to the run window
+        // when the actuation changed late.
+        let settled = plant.metrics_tracker().run_settle_until;
         for ep in plant.episodes() {
             if ep.end >= settled {
                 if self.episodes.len() < self.max {
@@ -263,13 +270,17 @@ pub fn state_digest(plant: &Plant) -> String {
 /// The report of a finished run of `plant` (scenario `name`), with the episodes of `log`.
 pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, SimulateError> {
     let p = plant.params();
-    let m: Metrics = plant
-        .steady_metrics()
-        .ok_or(SimulateError::NoSteadyWindow {
-            t_end: plant.time(),
-            settle: p.numerics.settle,
-            period: plant.block_length(),
-        })?;
+    let (m, steady): (Metrics, bool) = match (plant.steady_metrics(), plant.run_metrics()) {
+        (Some(m), _) => (m, true),
+        (None, Some(m)) => (m, false),
+        (None, None) => {
+            return Err(SimulateError::NoSteadyWindow {
+                t_end: plant.time(),
+                settle: p.numerics.settle,
+                period: plant.block_length(),
+            })
+        }
+    };
     let mut episodes = log.episodes.clone();
     episodes.retain(|e| e.end >= m.start && e.end < m.end);
     let d = *plant.discretisation();
@@ -298,6 +309,7 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
             start: m.start,
             end: m.end,
             periods: m.periods,
+            steady,
         },
         cells: p.numerics.cells,
         dt: d.dt,
@@ -380,8 +392,15 @@ impl Report {
             opt(p.alpha, 3)
         );
         out += &format!(
-            "grid: {} cells, dt = {:.3e} s, {} steps to t = {} s; window {:.3}-{:.3} s ({:.1} periods)\n",
-            self.cells, self.dt, self.steps, self.t_end, self.window.start, self.window.end, self.window.periods
+            "grid: {} cells, dt = {:.3e} s, {} steps to t = {} s; {} window {:.3}-{:.3} s ({:.1} periods)\n",
+            self.cells,
+            self.dt,
+            self.steps,
+            self.t_end,
+            if self.window.steady { "steady" } else { "run-average (the actuation changed within the last settle time, so no steady state)" },
+            self.window.start,
+            self.window.end,
+            self.window.periods
         );
         out += &format!("  velocity V        {:+.6e} m/s\n", self.velocity);
         out += &format!("  power P           {:.6e} W\n", self.power);
