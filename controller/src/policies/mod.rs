@@ -1,6 +1,7 @@
 //! Built-in policies and the registry that names them.
 
 mod optimal;
+mod pulse;
 mod resonance;
 mod sweep;
 mod wave;
@@ -36,6 +37,11 @@ pub const REGISTRY: &[(&str, &str, Factory)] = &[
         "sweep",
         "a schedule of waves: --sweep ALPHA,ALPHA,... held --dwell seconds each",
         sweep::build,
+    ),
+    (
+        "pulse",
+        "the scenario's wave, on and off every second",
+        pulse::build,
     ),
 ];
 

@@ -1,0 +1,33 @@
+//! `pulse`: the scenario's wave, switched on and off every second (an intermittent gait).
+
+use crate::controller::{Actuation, Context, Controller, Observation};
+use crawler_plant::wave::Wave;
+
+/// The wave during even seconds, no muscle force during odd ones.
+pub struct Pulse {
+    wave: Wave,
+    cells: usize,
+}
+
+pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
+    let wave = ctx.wave();
+    wave.validate_for_body(ctx.length, ctx.cells)?;
+    Ok(Box::new(Pulse {
+        wave,
+        cells: ctx.cells,
+    }))
+}
+
+impl Controller for Pulse {
+    fn name(&self) -> &str {
+        "pulse"
+    }
+
+    fn act(&mut self, obs: &Observation) -> Actuation {
+        if (obs.time as u64) % 2 == 0 {
+            Actuation::Wave(self.wave)
+        } else {
+            Actuation::Field(vec![0.0; self.cells])
+        }
+    }
+}
