@@ -44,15 +44,30 @@ pub fn repo_root() -> PathBuf {
         .to_path_buf()
 }
 
-/// The Python of the project's venv (created by scripts/setup-python.sh, which .ci/run calls).
+/// The Python of the project's venv with the pinned packages; the first call in a test process
+/// runs `scripts/setup-python.sh` (idempotent: it installs only what is missing), so
+/// `cargo test` works on a fresh clone.
 pub fn python() -> PathBuf {
-    let p = repo_root().join(".venv/bin/python");
-    assert!(
-        p.is_file(),
-        "{} missing: run scripts/setup-python.sh first (it installs the pinned eclipse-zenoh and msgpack)",
-        p.display()
-    );
-    p
+    static READY: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
+    READY
+        .get_or_init(|| {
+            let root = repo_root();
+            let out = Command::new("bash")
+                .arg(root.join("scripts/setup-python.sh"))
+                .output()
+                .map_err(|e| format!("cannot run scripts/setup-python.sh: {e}"))?;
+            let p = root.join(".venv/bin/python");
+            if out.status.success() && p.is_file() {
+                Ok(p)
+            } else {
+                Err(format!(
+                    "scripts/setup-python.sh failed (it needs python3 with venv and pip): {}",
+                    String::from_utf8_lossy(&out.stderr)
+                ))
+            }
+        })
+        .clone()
+        .unwrap_or_else(|e| panic!("{e}"))
 }
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
