@@ -159,3 +159,28 @@ fn garbage_never_panics() {
         assert!(load(text).is_err());
     }
 }
+
+#[test]
+fn every_shipped_scenario_loads_and_the_embedded_one_is_the_file() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let s = load(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(!s.name.is_empty());
+            n += 1;
+        }
+    }
+    assert!(n >= 2, "scenarios/ holds paper.toml and stick-slip.toml");
+    let paper = std::fs::read_to_string(dir.join("paper.toml")).unwrap();
+    assert_eq!(paper, PAPER_TOML);
+    let ss = std::fs::read_to_string(dir.join("stick-slip.toml")).unwrap();
+    let ss = load(&ss).unwrap();
+    assert_eq!(
+        (ss.plant.friction.eps, ss.wave.f0, ss.plant.numerics.cells),
+        (1.0, 0.2, 256)
+    );
+    assert!((ss.wave.omega / ss.natural_frequency() - 0.5).abs() < 1e-12);
+}
