@@ -116,12 +116,13 @@ struct OptimizeArgs {
     /// paper, or improved (alias travelling-wave).
     #[arg(long, default_value = "paper")]
     model: String,
-    /// Grid points in omega.
-    #[arg(long, default_value_t = 200)]
-    omega_points: usize,
-    /// Grid points in k.
-    #[arg(long, default_value_t = 200)]
-    k_points: usize,
+    /// Grid points in omega (default: 200 with the paper model, 32 with the improved one, whose
+    /// every grid cell solves a nonsmooth ODE; the refinement of the best cell follows either way).
+    #[arg(long)]
+    omega_points: Option<usize>,
+    /// Grid points in k (default: as for omega).
+    #[arg(long)]
+    k_points: Option<usize>,
     /// Keep the scenario's body length (k must fit it) instead of the paper's one-wavelength body.
     #[arg(long)]
     fixed_body: bool,
@@ -357,9 +358,13 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
             BodyLength::OneWavelength
         },
     };
+    let default_points = match model {
+        ModelChoice::Paper => 200,
+        _ => 32,
+    };
     let grid = GridSpec {
-        omega_points: a.omega_points,
-        k_points: a.k_points,
+        omega_points: a.omega_points.unwrap_or(default_points),
+        k_points: a.k_points.unwrap_or(default_points),
         refine: !a.no_refine,
     };
     let started = std::time::Instant::now();
