@@ -16,7 +16,7 @@ icd=$(ls /usr/share/vulkan/icd.d/lvp_icd*.json 2>/dev/null | head -n1)
 [ -n "$icd" ] || { echo "error: the lavapipe Vulkan driver is missing; run scripts/setup-viewer.sh" >&2; exit 2; }
 rm -f "$out"
 VK_ICD_FILENAMES="$icd" WGPU_BACKEND=vulkan timeout 300 xvfb-run -a -s "-screen 0 ${size}x24" \
-  "$viewer" --window-size "$size" --screenshot-to "$out" "$rec" >/dev/null 2>&1 || true
+  "$viewer" --bind 127.0.0.1 --window-size "$size" --screenshot-to "$out" "$rec" >/dev/null 2>&1 || true
 if [ -s "$out" ]; then
   echo "$out"
 else

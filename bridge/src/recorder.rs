@@ -206,7 +206,7 @@ impl Recorder {
             ]),
         )?;
         let colors = [
-            ("plant", [30, 30, 30]),
+            ("plant", [235, 235, 235]), // the dark theme's foreground: the truth, drawn widest
             ("paper", [230, 120, 20]),
             ("improved", [30, 160, 80]),
         ];
@@ -217,7 +217,7 @@ impl Recorder {
                     &rerun::SeriesLines::new()
                         .with_names([format!("{m} ({source})")])
                         .with_colors([rerun::Rgba32::from_rgb(c[0], c[1], c[2])])
-                        .with_widths([if source == "plant" { 2.0 } else { 1.5 }]),
+                        .with_widths([if source == "plant" { 2.5 } else { 1.5 }]),
                 )?;
             }
         }
@@ -225,7 +225,8 @@ impl Recorder {
             format!("{}/plant", paths::TAIL),
             &rerun::SeriesLines::new()
                 .with_names(["u(0, t) plant"])
-                .with_colors([rerun::Rgba32::from_rgb(30, 30, 30)]),
+                .with_colors([rerun::Rgba32::from_rgb(235, 235, 235)])
+                .with_widths([2.0]),
         )?;
         rec.log_static(
             format!("{}/paper", paths::TAIL),
