@@ -18,19 +18,32 @@ pub fn bin_dir() -> PathBuf {
     deps.parent().expect("profile dir").to_path_buf()
 }
 
-/// Path of one of the project's binaries, building the workspace's binaries if it is missing.
+/// Path of one of the project's binaries.
+///
+/// `cargo test --workspace` builds every binary (each binary's package has an integration test,
+/// which makes cargo build it). When a test is run on its own (`cargo test -p crawler-e2e`) and
+/// a binary is missing, the workspace's binaries are built once per test process, before any
+/// test of that process spawns one, so no test's timeouts run while cargo compiles.
 pub fn bin(name: &str) -> PathBuf {
+    static BUILT: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
     let path = bin_dir().join(name);
     if !path.is_file() {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let release = bin_dir().ends_with("release");
-        let mut cmd = Command::new(cargo);
-        cmd.args(["build", "--workspace", "--bins"]);
-        if release {
-            cmd.arg("--release");
+        let built = BUILT.get_or_init(|| {
+            let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+            let mut cmd = Command::new(cargo);
+            cmd.args(["build", "--workspace", "--bins"]);
+            if bin_dir().ends_with("release") {
+                cmd.arg("--release");
+            }
+            match cmd.status() {
+                Ok(s) if s.success() => Ok(()),
+                Ok(s) => Err(format!("building the binaries failed ({s})")),
+                Err(e) => Err(format!("cannot run cargo: {e}")),
+            }
+        });
+        if let Err(e) = built {
+            panic!("{e}");
         }
-        let status = cmd.status().expect("cargo build");
-        assert!(status.success(), "building the binaries failed");
     }
     assert!(path.is_file(), "{} not found", path.display());
     path
