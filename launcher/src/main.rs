@@ -166,6 +166,15 @@ fn spawn(
 }
 
 impl Proc {
+    /// `Some(exit code)` once the process has ended (`Some(None)`: killed by a signal).
+    fn ended(&mut self) -> Option<Option<i32>> {
+        match self.child.try_wait() {
+            Ok(Some(s)) => Some(s.code()),
+            Ok(None) => None,
+            Err(_) => Some(None),
+        }
+    }
+
     /// Waits up to `timeout`; on timeout sends SIGINT, then kills after a grace period.
     fn finish(&mut self, timeout: Duration) -> (Option<i32>, String) {
         let deadline = Instant::now() + timeout;
@@ -205,6 +214,30 @@ impl Proc {
         }
         (status.and_then(|s| s.code()), out)
     }
+}
+
+/// The name and exit code of the first process that ended with a failure, if any.
+fn first_failure(procs: &mut [&mut Proc]) -> Option<(&'static str, Option<i32>)> {
+    procs.iter_mut().find_map(|p| match p.ended() {
+        Some(Some(0)) | None => None,
+        Some(code) => Some((p.name, code)),
+    })
+}
+
+/// Stops every process after `failed` ended with a failure; the exit status of the launcher.
+fn stop_all(failed: (&'static str, Option<i32>), procs: &mut [&mut Proc]) -> ExitCode {
+    let (name, code) = failed;
+    let code = code.map_or_else(|| "a signal".to_string(), |c| format!("exit code {c}"));
+    eprintln!("crawler: the {name} failed ({code}; its messages are above); stopping the others");
+    for p in procs.iter_mut() {
+        if p.ended().is_none() {
+            interrupt(&p.child);
+        }
+    }
+    for p in procs.iter_mut() {
+        let _ = p.finish(Duration::from_secs(10));
+    }
+    ExitCode::FAILURE
 }
 
 fn interrupt(child: &Child) {
@@ -268,10 +301,21 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         &bridge_args,
         Some(("plant found", ready_tx)),
     )?;
-    if ready_rx.recv_timeout(Duration::from_secs(30)).is_err() {
-        eprintln!(
-            "crawler: the recorder did not connect within 30 s; starting the controller anyway"
-        );
+    let connect_by = Instant::now() + Duration::from_secs(30);
+    loop {
+        if ready_rx.try_recv().is_ok() {
+            break;
+        }
+        if let Some(failed) = first_failure(&mut [&mut plant, &mut bridge]) {
+            return Ok(stop_all(failed, &mut [&mut plant, &mut bridge]));
+        }
+        if Instant::now() >= connect_by {
+            eprintln!(
+                "crawler: the recorder did not connect within 30 s; starting the controller anyway"
+            );
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
     }
     let mut controller = spawn(
         "controller",
@@ -279,8 +323,20 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         &ctl_args,
         None,
     )?;
-    let day = Duration::from_secs(24 * 3600);
-    let (plant_code, plant_out) = plant.finish(day);
+    // Supervise until the plant ends: if any process fails first, stop the others at once.
+    loop {
+        if let Some(failed) = first_failure(&mut [&mut plant, &mut controller, &mut bridge]) {
+            return Ok(stop_all(
+                failed,
+                &mut [&mut plant, &mut controller, &mut bridge],
+            ));
+        }
+        if plant.ended().is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let (plant_code, plant_out) = plant.finish(Duration::ZERO);
     let (ctl_code, ctl_out) = controller.finish(Duration::from_secs(30));
     let (bridge_code, _) = bridge.finish(Duration::from_secs(60));
     println!("{}", plant_out.trim_end());
