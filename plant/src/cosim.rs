@@ -73,12 +73,12 @@ pub struct RunOptions {
 pub enum Outcome {
     /// The clock reached the end.
     Finished(Box<Report>),
-    /// The run stopped early; a checkpoint was written.
+    /// The run stopped early; a checkpoint was written if anything had been simulated.
     Stopped {
         /// Why.
         reason: String,
-        /// The checkpoint file.
-        checkpoint: PathBuf,
+        /// The checkpoint file; `None` if no controller ever joined (nothing to resume).
+        checkpoint: Option<PathBuf>,
         /// Suggested process exit code.
         exit_code: u8,
     },
@@ -427,14 +427,25 @@ impl Runner {
             rejections: self.rejected(link),
             reason: reason.clone(),
         };
-        let path = self.opts.checkpoint.clone();
-        ckpt.save(&path)?;
+        // Before a controller joins nothing has been simulated: no checkpoint (a resumed run's
+        // own checkpoint stays as it was).
+        let path = match self.joined {
+            Some(_) => {
+                let path = self.opts.checkpoint.clone();
+                ckpt.save(&path)?;
+                Some(path)
+            }
+            None => None,
+        };
         let state = if exit_code == EXIT_INTERRUPTED {
             "stopped"
         } else {
             "failed"
         };
-        let message = format!("{reason}; checkpoint written to {}", path.display());
+        let message = match &path {
+            Some(p) => format!("{reason}; checkpoint written to {}", p.display()),
+            None => format!("{reason}; nothing simulated, no checkpoint"),
+        };
         link.status(
             state,
             &message,
@@ -598,6 +609,9 @@ impl Runner {
             None,
         );
         let mut last_status = Instant::now();
+        // When the joined controller's last valid answer arrived: how fast a lost controller is
+        // noticed is measured from there.
+        let mut last_answer = Instant::now();
         loop {
             state_bytes = self.publish_state(link);
             let n = self.plant().macro_step();
@@ -622,7 +636,10 @@ impl Runner {
                     recv(link.control) -> ev => match ev {
                         Ok(Control::ControllerDown(id)) if id == joined => {
                             bar.abandon();
-                            let reason = format!("controller {joined} left the run at step {n} (its liveliness token disappeared)");
+                                                        let reason = format!(
+                                "controller {joined} left the run at step {n} (its liveliness token disappeared {} ms after its last answer)",
+                                last_answer.elapsed().as_millis()
+                            );
                             return self.stop(link, reason, EXIT_CONTROLLER_LOST);
                         }
                         Ok(Control::Interrupt) => {
@@ -637,7 +654,10 @@ impl Runner {
                     recv(link.data) -> bytes => {
                         let Ok(bytes) = bytes else { continue };
                         match classify(&bytes, n, &joined, cells, length) {
-                            Ok(a) => break a,
+                                                        Ok(a) => {
+                                last_answer = Instant::now();
+                                break a;
+                            }
                             Err((kind, why)) => {
                                 let count = kind.count(&mut self.rejections);
                                 self.warn(kind, count, &why);

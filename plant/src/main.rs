@@ -179,11 +179,14 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
             checkpoint,
             exit_code,
         } => {
-            eprintln!(
-                "crawler-plant: run stopped: {reason}. Checkpoint: {} (continue with: crawler-plant run --resume {})",
-                checkpoint.display(),
-                checkpoint.display()
-            );
+            match checkpoint {
+                Some(c) => eprintln!(
+                    "crawler-plant: run stopped: {reason}. Checkpoint: {} (continue with: crawler-plant run --resume {})",
+                    c.display(),
+                    c.display()
+                ),
+                None => eprintln!("crawler-plant: run stopped: {reason} (nothing simulated, no checkpoint written)"),
+            }
             Ok(ExitCode::from(exit_code))
         }
     }

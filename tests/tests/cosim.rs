@@ -76,6 +76,9 @@ fn the_plant_waits_and_says_for_what() {
         p.stderr
     );
     assert!(p.stderr.contains("no controller joined"), "{}", p.stderr);
+    // nothing was simulated: nothing to resume, no checkpoint left behind
+    assert!(p.stderr.contains("no checkpoint"), "{}", p.stderr);
+    assert!(!run.path("plant.ckpt").exists());
 }
 
 #[test]
@@ -105,6 +108,16 @@ fn a_killed_controller_stops_the_plant_and_resume_is_bit_identical() {
         "{}",
         p.stderr
     );
+    // Noticed through liveliness within 100 ms of the controller's last answer (it was
+    // answering thousands of states per second when it was killed).
+    let ms: u64 = p
+        .stderr
+        .split("disappeared ")
+        .nth(1)
+        .and_then(|rest| rest.split(" ms after its last answer").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no detection latency in: {}", p.stderr));
+    assert!(ms < 100, "liveliness noticed the loss after {ms} ms");
     let ckpt = run.path("plant.ckpt");
     assert!(ckpt.is_file());
 
