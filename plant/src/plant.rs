@@ -4,7 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::events::{Episode, EventTracker};
-use crate::metrics::{BlockReport, Metrics, MetricsTracker};
+use crate::metrics::{BlockReport, Metrics, MetricsTracker, Sums};
 use crate::params::{Discretisation, PlantParams};
 use crate::solver::{Solver, StepSums};
 use crate::wave::Wave;
@@ -231,7 +231,10 @@ impl Plant {
     /// start), whatever the actuation did: averages over a time-varying actuation, not a steady
     /// state. `None` before the first block after the transient closes.
     pub fn run_metrics(&self) -> Option<Metrics> {
-        let s = &self.metrics.run;
+        self.metrics_of(&self.metrics.run)
+    }
+
+    fn metrics_of(&self, s: &Sums) -> Option<Metrics> {
         (s.steps > 0).then(|| {
             s.metrics(
                 self.cells(),
@@ -245,15 +248,7 @@ impl Plant {
     /// Metrics of the steady window: whole forcing periods (blocks) that started at least
     /// `numerics.settle` after the last change of actuation; `None` before the first one closes.
     pub fn steady_metrics(&self) -> Option<Metrics> {
-        let s = &self.metrics.steady;
-        (s.steps > 0).then(|| {
-            s.metrics(
-                self.cells(),
-                self.disc.dt,
-                self.params.body.area,
-                self.metrics.block_len,
-            )
-        })
+        self.metrics_of(&self.metrics.steady)
     }
 
     /// Muscle coefficients `(a, b)` of the sine/cosine tables at internal time `t`, and `omega`.

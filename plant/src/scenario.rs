@@ -18,12 +18,14 @@ pub const PAPER_TOML: &str = include_str!("../../scenarios/paper.toml");
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     /// The file could not be read.
-    #[error("cannot read scenario {path}: {source}")]
+    // (The causes are shown in the message, not chained as `source`, so that printing the
+    // error chain does not repeat them.)
+    #[error("cannot read scenario {path}: {cause}")]
     Io {
         /// The file.
         path: String,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// Not valid TOML, an unknown key or a wrong type (the message gives the line).
     #[error("scenario {origin}: {message}")]
@@ -34,12 +36,12 @@ pub enum ScenarioError {
         message: String,
     },
     /// A value out of range.
-    #[error("scenario {origin}: {source}")]
+    #[error("scenario {origin}: {cause}")]
     Invalid {
         /// The file name.
         origin: String,
         /// The field at fault.
-        source: ParamError,
+        cause: ParamError,
     },
 }
 
@@ -268,9 +270,9 @@ impl Scenario {
 
     /// Loads a scenario file and applies overrides.
     pub fn from_file(path: &Path, overrides: &Overrides) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| ScenarioError::Io {
             path: path.display().to_string(),
-            source,
+            cause,
         })?;
         Self::from_toml(&text, &path.display().to_string(), overrides)
     }
@@ -294,9 +296,9 @@ impl Scenario {
             message: e.to_string(),
         })?;
         raw.resolve(overrides)
-            .map_err(|source| ScenarioError::Invalid {
+            .map_err(|cause| ScenarioError::Invalid {
                 origin: origin.to_string(),
-                source,
+                cause,
             })
     }
 

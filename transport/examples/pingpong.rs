@@ -6,7 +6,7 @@
 
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::bounded;
+use crossbeam_channel::{bounded, Receiver};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
@@ -21,6 +21,32 @@ fn arg(args: &[String], name: &str, default: &str) -> String {
         .unwrap_or_else(|| default.to_string())
 }
 
+type Link = (
+    zenoh::pubsub::Publisher<'static>,
+    Receiver<Vec<u8>>,
+    zenoh::pubsub::Subscriber<()>,
+);
+
+/// Publishes on `out` as the plant publishes states; `in_` arrives through a callback into a channel.
+fn link(session: &zenoh::Session, out: &'static str, in_: &'static str) -> anyhow::Result<Link> {
+    let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    let publisher = session
+        .declare_publisher(out)
+        .congestion_control(CongestionControl::Block)
+        .express(true)
+        .wait()
+        .map_err(z)?;
+    let (tx, rx) = bounded::<Vec<u8>>(1024);
+    let sub = session
+        .declare_subscriber(in_)
+        .callback(move |s| {
+            let _ = tx.try_send(s.payload().to_bytes().into_owned());
+        })
+        .wait()
+        .map_err(z)?;
+    Ok((publisher, rx, sub))
+}
+
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let mode = args.get(1).cloned().unwrap_or_default();
@@ -33,20 +59,7 @@ fn main() -> anyhow::Result<()> {
     match mode.as_str() {
         "ping" => {
             let session = crawler_transport::open(Role::Plant, &net)?;
-            let publisher = session
-                .declare_publisher("bench/ping")
-                .congestion_control(CongestionControl::Block)
-                .express(true)
-                .wait()
-                .map_err(z)?;
-            let (tx, rx) = bounded::<Vec<u8>>(1024);
-            let _sub = session
-                .declare_subscriber("bench/pong")
-                .callback(move |s| {
-                    let _ = tx.try_send(s.payload().to_bytes().into_owned());
-                })
-                .wait()
-                .map_err(z)?;
+            let (publisher, rx, _sub) = link(&session, "bench/ping", "bench/pong")?;
             let payload = vec![7u8; size];
             // wait for the pong side
             loop {
@@ -71,20 +84,7 @@ fn main() -> anyhow::Result<()> {
         }
         "pong" => {
             let session = crawler_transport::open(Role::Controller, &net)?;
-            let publisher = session
-                .declare_publisher("bench/pong")
-                .congestion_control(CongestionControl::Block)
-                .express(true)
-                .wait()
-                .map_err(z)?;
-            let (tx, rx) = bounded::<Vec<u8>>(1024);
-            let _sub = session
-                .declare_subscriber("bench/ping")
-                .callback(move |s| {
-                    let _ = tx.try_send(s.payload().to_bytes().into_owned());
-                })
-                .wait()
-                .map_err(z)?;
+            let (publisher, rx, _sub) = link(&session, "bench/pong", "bench/ping")?;
             let answer = vec![9u8; reply];
             while let Ok(_ping) = rx.recv_timeout(Duration::from_secs_f64(seconds + 10.0)) {
                 publisher.put(answer.clone()).wait().map_err(z)?;
