@@ -24,7 +24,7 @@ impl Controller for Pulse {
     }
 
     fn act(&mut self, obs: &Observation) -> Actuation {
-        if (obs.time as u64) % 2 == 0 {
+        if (obs.time as u64).is_multiple_of(2) {
             Actuation::Wave(self.wave)
         } else {
             Actuation::Field(vec![0.0; self.cells])
