@@ -8,6 +8,8 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
@@ -240,6 +242,25 @@ fn stop_all(failed: (&'static str, Option<i32>), procs: &mut [&mut Proc]) -> Exi
     ExitCode::FAILURE
 }
 
+/// After Ctrl-C: asks every running process to stop (they finish cleanly: the plant writes its
+/// checkpoint, the recorder closes its file), waits for them and prints what the plant said.
+fn stop_interrupted(procs: &mut [&mut Proc]) -> ExitCode {
+    eprintln!("crawler: interrupted; stopping the run");
+    for p in procs.iter_mut() {
+        if p.ended().is_none() {
+            interrupt(&p.child);
+        }
+    }
+    for p in procs.iter_mut() {
+        let (_, out) = p.finish(Duration::from_secs(30));
+        if p.name == "plant" && !out.trim().is_empty() {
+            println!("{}", out.trim_end());
+        }
+    }
+    // 128 + SIGINT, as a shell reports a process ended by Ctrl-C
+    ExitCode::from(130)
+}
+
 fn interrupt(child: &Child) {
     // SIGINT lets the process finish cleanly (the bridge closes its recording properly).
     let _ = Command::new("kill")
@@ -249,6 +270,11 @@ fn interrupt(child: &Child) {
 
 fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let dir = binaries()?;
+    let interrupted = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupted.clone();
+        ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))?;
+    }
     let run_id = a
         .run_id
         .clone()
@@ -309,6 +335,9 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         if let Some(failed) = first_failure(&mut [&mut plant, &mut bridge]) {
             return Ok(stop_all(failed, &mut [&mut plant, &mut bridge]));
         }
+        if interrupted.load(Ordering::SeqCst) {
+            return Ok(stop_interrupted(&mut [&mut plant, &mut bridge]));
+        }
         if Instant::now() >= connect_by {
             eprintln!(
                 "crawler: the recorder did not connect within 30 s; starting the controller anyway"
@@ -330,6 +359,13 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 failed,
                 &mut [&mut plant, &mut controller, &mut bridge],
             ));
+        }
+        if interrupted.load(Ordering::SeqCst) {
+            return Ok(stop_interrupted(&mut [
+                &mut plant,
+                &mut controller,
+                &mut bridge,
+            ]));
         }
         if plant.ended().is_some() {
             break;

@@ -66,3 +66,71 @@ fn a_failing_process_stops_the_run_with_its_reason() {
         .collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }
+
+#[test]
+fn ctrl_c_stops_every_process_cleanly() {
+    use std::io::{BufRead, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    let run_id = format!("sigint-{}", std::process::id());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_crawler"))
+        .args([
+            "run", "--run-id", &run_id, "--t-end", "1000", "--out", "x.rrd",
+        ])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run crawler");
+    // Read stderr on a thread; the test waits for the plant to start stepping.
+    let (tx, rx) = std::sync::mpsc::channel();
+    let err = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            let _ = tx.send(line.clone());
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    let started = loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(line) if line.contains("joined run") => break true,
+            Ok(_) => {}
+            Err(_) => break false,
+        }
+    };
+    if !started {
+        let _ = child.kill();
+        panic!("the plant never started stepping");
+    }
+    let _ = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status();
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    while child.try_wait().expect("wait").is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("crawler run did not stop after Ctrl-C");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = child.wait().unwrap();
+    let err = reader.join().unwrap();
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(
+        err.contains("crawler: interrupted; stopping the run"),
+        "{err}"
+    );
+    assert!(
+        err.contains("[plant] crawler-plant: run stopped: interrupted at step"),
+        "{err}"
+    );
+    assert!(err.contains("recording closed x.rrd"), "{err}");
+    let ckpt = dir.path().join(format!("crawler-{run_id}.ckpt"));
+    assert!(ckpt.is_file(), "no checkpoint: {err}");
+    let rrd = std::fs::metadata(dir.path().join("x.rrd")).expect("recording");
+    assert!(rrd.len() > 0);
+}
