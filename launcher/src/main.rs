@@ -51,6 +51,10 @@ struct RunArgs {
     /// Number of cells (default: the scenario's).
     #[arg(long)]
     cells: Option<i64>,
+    /// Continue a stopped run from the plant's checkpoint (the checkpoint holds the plant's
+    /// scenario and grid; `--scenario` and `--policy` still choose the controller's).
+    #[arg(long, value_name = "FILE", conflicts_with = "cells")]
+    resume: Option<PathBuf>,
     /// Record the fields of every K-th step.
     #[arg(long, default_value_t = 4)]
     every: u64,
@@ -284,7 +288,10 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         scenario_args.extend(["--scenario".into(), s.display().to_string()]);
     }
     let mut plant_args: Vec<String> = vec!["run".into(), "--run-id".into(), run_id.clone()];
-    plant_args.extend(scenario_args.iter().cloned());
+    match &a.resume {
+        Some(ckpt) => plant_args.extend(["--resume".into(), ckpt.display().to_string()]),
+        None => plant_args.extend(scenario_args.iter().cloned()),
+    }
     if let Some(t) = a.t_end {
         plant_args.extend(["--t-end".into(), t.to_string()]);
     }

@@ -68,13 +68,13 @@ fn a_failing_process_stops_the_run_with_its_reason() {
 }
 
 #[test]
-fn ctrl_c_stops_every_process_cleanly() {
+fn ctrl_c_stops_every_process_cleanly_and_the_run_resumes() {
     use std::io::{BufRead, BufReader};
     let dir = tempfile::tempdir().unwrap();
     let run_id = format!("sigint-{}", std::process::id());
     let mut child = Command::new(env!("CARGO_BIN_EXE_crawler"))
         .args([
-            "run", "--run-id", &run_id, "--t-end", "1000", "--out", "x.rrd",
+            "run", "--run-id", &run_id, "--t-end", "30", "--out", "x.rrd",
         ])
         .current_dir(dir.path())
         .stdout(std::process::Stdio::piped())
@@ -133,4 +133,34 @@ fn ctrl_c_stops_every_process_cleanly() {
     assert!(ckpt.is_file(), "no checkpoint: {err}");
     let rrd = std::fs::metadata(dir.path().join("x.rrd")).expect("recording");
     assert!(rrd.len() > 0);
+
+    // The one command continues the run from the checkpoint to the original end.
+    let ckpt = ckpt.display().to_string();
+    let id2 = format!("{run_id}-resumed");
+    let args = ["--resume", &ckpt, "--run-id", &id2, "--out", "y.rrd"];
+    let mut child = Command::new(env!("CARGO_BIN_EXE_crawler"))
+        .arg("run")
+        .args(args)
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run crawler");
+    let deadline = std::time::Instant::now() + Duration::from_secs(120);
+    while child.try_wait().expect("wait").is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("the resumed run did not finish");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("stepping to step 30000"), "{stderr}");
+    assert!(stdout.contains("velocity V"), "{stdout}");
+    assert!(stdout.contains("steps to t = 30 s"), "{stdout}");
 }
