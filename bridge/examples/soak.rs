@@ -44,6 +44,8 @@ fn main() -> anyhow::Result<()> {
         n_f: 0.5,
         settle: 5.0,
         model_description: "{}".into(),
+        boundary: "periodic".into(),
+        disclosed: true,
     })?;
     let started = std::time::Instant::now();
     for n in 0..=steps {

@@ -13,7 +13,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 use zenoh::Wait;
 
-use crawler_plant::params::{Body, Friction};
+use crawler_plant::params::{Body, Boundary, Friction};
 use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
 use crawler_protocol::{
@@ -172,12 +172,18 @@ pub fn context_of(info: &ModelInfo, scenario: &Scenario, options: PolicyOptions)
         n_f: info.n_f,
     };
     scenario.plant.length = info.length;
+    scenario.plant.boundary = if info.boundary == "free" {
+        Boundary::Free
+    } else {
+        Boundary::Periodic
+    };
     scenario.plant.numerics.cells = info.cells as usize;
     scenario.plant.numerics.step = info.step;
     Context {
         body: scenario.plant.body,
         friction: scenario.plant.friction,
         length: info.length,
+        boundary: scenario.plant.boundary,
         cells: info.cells as usize,
         step: info.step,
         scenario,

@@ -3,7 +3,7 @@
 //! A controller is one type implementing [`Controller`]; register it with one line in
 //! [`crate::policies::REGISTRY`] and it is available as `crawler-controller run --policy NAME`.
 
-use crawler_plant::params::{Body, Friction};
+use crawler_plant::params::{Body, Boundary, Friction};
 use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
 
@@ -48,6 +48,8 @@ pub struct Context {
     pub friction: Friction,
     /// Body length, m.
     pub length: f64,
+    /// Periodic body or free ends.
+    pub boundary: Boundary,
     /// Number of cells.
     pub cells: usize,
     /// Communication step H, s.
@@ -107,6 +109,7 @@ impl Context {
             body: scenario.plant.body,
             friction: scenario.plant.friction,
             length: scenario.plant.length,
+            boundary: scenario.plant.boundary,
             cells: scenario.plant.numerics.cells,
             step: scenario.plant.numerics.step,
             scenario: scenario.clone(),

@@ -155,7 +155,7 @@ fn reconstructed_displacement_overlays_the_plant_at_small_eps() {
         },
     )
     .unwrap();
-    let mut plant = crawler_plant::Plant::new(s.plant, 0.0).unwrap();
+    let mut plant = crawler_plant::Plant::new(s.plant.clone(), 0.0).unwrap();
     plant.set_wave(s.wave).unwrap();
     while plant.time() < s.t_end - 1e-9 {
         plant.advance().unwrap();

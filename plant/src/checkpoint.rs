@@ -12,7 +12,7 @@ use crate::scenario::Scenario;
 use crate::simulate::EpisodeLog;
 
 const MAGIC: &[u8; 8] = b"CRWLCKPT";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 /// A stopped run: the plant's full state at the start of communication step `state.macro_step`
 /// (no actuation for that step applied yet), and the run's bookkeeping.

@@ -134,6 +134,7 @@ pub fn classify(
     joined: &str,
     cells: usize,
     length: f64,
+    boundary: crate::params::Boundary,
 ) -> Result<Actuation, (Reject, String)> {
     let a: Actuation = decode(bytes).map_err(|e| match e {
         ProtocolError::Version { .. } => (Reject::Version, e.to_string()),
@@ -184,7 +185,7 @@ pub fn classify(
             omega: w.omega,
             phase: w.phase,
         };
-        wave.validate_for_body(length, cells)
+        wave.validate_for_body(length, cells, boundary)
             .map_err(|e| (Reject::Invalid, e.to_string()))?;
     }
     Ok(a)
@@ -350,7 +351,7 @@ pub fn run(
         ),
         None => {
             let s = opts.scenario.clone();
-            let last = (s.t_end / s.plant.numerics.step).round().max(1.0) as u64;
+            let last = s.plant.discretisation()?.steps_until(s.t_end);
             (
                 s,
                 None,
@@ -360,20 +361,21 @@ pub fn run(
             )
         }
     };
-    let mut slave = Slave::instantiate("crawler-plant", scenario.plant)?;
+    let mut slave = Slave::instantiate("crawler-plant", scenario.plant.clone())?;
     slave.enter_initialization_mode(0.0, None)?;
     slave.exit_initialization_mode()?;
     if let Some(st) = &state {
         slave.set_state(st)?;
     }
-    let md = ModelDescription::new(&scenario.plant);
-    let p = scenario.plant;
+    // What controllers are told: nominal friction and no map unless the pipe is disclosed.
+    let p = scenario.plant.told();
+    let md = ModelDescription::new(&p);
     let info = ModelInfo {
         v: PROTOCOL_VERSION,
         run: opts.network.run_id.clone(),
         cells: p.numerics.cells as u64,
         length: p.length,
-        step: p.numerics.step,
+        step: slave.plant().step_length(),
         start_time: slave.plant().start_time(),
         last_step,
         area: p.body.area,
@@ -385,6 +387,8 @@ pub fn run(
         n_f: p.friction.n_f,
         settle: p.numerics.settle,
         model_description: md.to_json(),
+        boundary: p.boundary.as_str().to_string(),
+        disclosed: p.pipe.disclose,
     };
     let link = Link::open(&opts.network, info, control_tx, control_rx)?;
     let mut r = Runner {
@@ -595,7 +599,8 @@ impl Runner {
         self.joined = Some(joined.clone());
         let cells = self.plant().cells();
         let length = self.plant().params().length;
-        let h = self.plant().params().numerics.step;
+        let boundary = self.plant().params().boundary;
+        let h = self.plant().step_length();
         let first = self.plant().macro_step();
         let started = Instant::now();
         let mut state_bytes;
@@ -653,7 +658,7 @@ impl Runner {
                     },
                     recv(link.data) -> bytes => {
                         let Ok(bytes) = bytes else { continue };
-                        match classify(&bytes, n, &joined, cells, length) {
+                        match classify(&bytes, n, &joined, cells, length, boundary) {
                                                         Ok(a) => {
                                 last_answer = Instant::now();
                                 break a;

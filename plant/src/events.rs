@@ -1,11 +1,13 @@
 //! Stick-slip episodes per node.
 //!
 //! An episode is a maximal run of internal steps in which a node is held at rest by static
-//! friction, lasting at least `numerics.min_stick` seconds. The threshold is a physical time, not a
-//! number of steps: a velocity that merely passes through zero can land in the static band for a
-//! single step (a duration of order `dt`), and counting those would make the episode count grow as
-//! `dt` shrinks. With a fixed physical threshold the count, the mean duration and the stuck
-//! fraction converge under refinement (physics-notes §6).
+//! friction. The kernel decides a stop on the velocity at a step's midpoint and a release on the
+//! force at its start, half a step earlier, so a discrete stick phase of `m` steps stands for a
+//! true one of `m - 1/2` steps on average: that is its duration here, and the stuck node-steps
+//! the kernel counted are corrected by the same half step. A velocity reversal (one step at rest
+//! held by momentum alone, [`Transition::reversal`]) is no stick phase: duration zero. An episode
+//! counts when it lasts at least `numerics.min_stick` seconds, a physical time, so the count, the
+//! mean duration and the stuck fraction converge under refinement (`docs/numerics.md`).
 
 use serde::{Deserialize, Serialize};
 
@@ -33,8 +35,18 @@ const SLIDING: u64 = u64::MAX;
 pub struct EventTracker {
     /// Internal step at which each node's current stick phase began, or `u64::MAX` if sliding.
     stick_start: Vec<u64>,
+    /// True if that stop was a [`Transition::reversal`].
+    reversal: Vec<bool>,
     /// Shortest counted stick phase, s.
     pub min_stick: f64,
+}
+
+/// What the transitions of one step changed in the statistics.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Applied {
+    /// Correction to the stuck node-steps counted whole-step by the kernel for the stick phases
+    /// that ended in this step, in node-steps: their durations minus their whole-step counts.
+    pub stuck_correction: f64,
 }
 
 impl EventTracker {
@@ -42,6 +54,7 @@ impl EventTracker {
     pub fn new(cells: usize, min_stick: f64) -> Self {
         Self {
             stick_start: vec![SLIDING; cells],
+            reversal: vec![false; cells],
             min_stick,
         }
     }
@@ -52,7 +65,7 @@ impl EventTracker {
     }
 
     /// Applies the transitions of internal step `step` (which spans `[t0 + step dt, t0 + (step+1) dt]`)
-    /// and pushes completed episodes to `out`.
+    /// and pushes completed episodes (at least `min_stick` long) to `out`.
     pub fn apply(
         &mut self,
         step: u64,
@@ -60,29 +73,38 @@ impl EventTracker {
         dt: f64,
         transitions: &[Transition],
         out: &mut Vec<Episode>,
-    ) {
+    ) -> Applied {
+        let mut applied = Applied::default();
         for tr in transitions {
             let i = tr.node as usize;
             if tr.stuck {
                 self.stick_start[i] = step;
+                self.reversal[i] = tr.reversal;
             } else {
                 let start = self.stick_start[i];
                 self.stick_start[i] = SLIDING;
                 if start == SLIDING {
                     continue;
                 }
-                let duration = (step - start) as f64 * dt;
+                let whole = step - start;
+                if whole == 1 && self.reversal[i] {
+                    applied.stuck_correction -= 1.0;
+                    continue;
+                }
+                applied.stuck_correction -= 0.5;
+                let duration = (whole as f64 - 0.5) * dt;
                 if duration + 1e-12 * dt >= self.min_stick {
                     out.push(Episode {
                         node: tr.node,
                         start: t0 + start as f64 * dt,
-                        end: t0 + step as f64 * dt,
+                        end: t0 + (step as f64 - 0.5) * dt,
                         duration,
                         direction: if tr.velocity > 0.0 { 1 } else { -1 },
                     });
                 }
             }
         }
+        applied
     }
 
     /// Number of nodes currently in a stick phase.
@@ -90,8 +112,21 @@ impl EventTracker {
         self.stick_start.iter().filter(|&&s| s != SLIDING).count()
     }
 
-    /// Checks the tracker matches a body of `cells` nodes (for restored checkpoints).
-    pub fn matches(&self, cells: usize) -> bool {
-        self.stick_start.len() == cells
+    /// Checks a restored tracker: one entry per node of a body of `cells` nodes.
+    pub fn validate(&self, cells: usize) -> Result<(), crate::error::ParamError> {
+        for (name, len) in [
+            ("state.events.stick_start", self.stick_start.len()),
+            ("state.events.reversal", self.reversal.len()),
+        ] {
+            if len != cells {
+                return Err(crate::error::ParamError::new(
+                    name,
+                    format!("{len} values"),
+                    format!("{cells} values (one per cell)"),
+                ));
+            }
+        }
+        crate::error::non_negative("state.events.min_stick", self.min_stick)?;
+        Ok(())
     }
 }

@@ -23,6 +23,14 @@ pub fn encode<T: Serialize>(magic: &[u8; 8], version: u32, value: &T) -> Vec<u8>
     out
 }
 
+/// What changed with each format version (states and checkpoints share the numbering).
+fn history(version: u32) -> &'static str {
+    match version {
+        1 => "format 1: internal step at Courant number 0.9 dividing the communication step, no free ends or pipe map",
+        _ => "an unknown earlier format",
+    }
+}
+
 /// Checks magic, version and checksum, then decodes. `what` names the content in errors.
 pub fn decode<T: DeserializeOwned>(
     magic: &[u8; 8],
@@ -38,8 +46,17 @@ pub fn decode<T: DeserializeOwned>(
     }
     let got = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
     if got != version {
+        let why = if got < version {
+            format!(
+                "; it was written by an earlier build of the plant ({}), which this build cannot \
+                 continue bit-identically: rerun the scenario",
+                history(got)
+            )
+        } else {
+            "; it was written by a newer build".to_string()
+        };
         return Err(FrameError(format!(
-            "{what} has format version {got}, this build reads {version}"
+            "{what} has format version {got}, this build reads {version}{why}"
         )));
     }
     let crc = u32::from_le_bytes(bytes[12..16].try_into().expect("4 bytes"));

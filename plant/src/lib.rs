@@ -23,6 +23,7 @@ pub mod friction;
 pub mod metrics;
 pub mod model_description;
 pub mod params;
+pub mod pipe;
 pub mod plant;
 pub mod scenario;
 pub mod scenario_args;

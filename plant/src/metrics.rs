@@ -30,7 +30,9 @@ pub struct Sums {
     pub last_v: f64,
     /// Sum over steps and nodes of `s`.
     pub sum_s: f64,
-    /// Node-steps spent stuck.
+    /// Sum over steps and nodes of the Coulomb force density `eps_i c_d (s - n_F,i)`, N/m.
+    pub friction_force: f64,
+    /// Node-steps spent stuck (stick phases timed inside their first and last steps).
     pub stuck: f64,
     /// Largest tension, N.
     pub max_tension: f64,
@@ -58,6 +60,7 @@ impl Sums {
             first_v_old: 0.0,
             last_v: 0.0,
             sum_s: 0.0,
+            friction_force: 0.0,
             stuck: 0.0,
             max_tension: f64::NEG_INFINITY,
             max_strain: 0.0,
@@ -80,6 +83,7 @@ impl Sums {
         self.sum_v += other.sum_v;
         self.sum_v_old += other.sum_v_old;
         self.sum_s += other.sum_s;
+        self.friction_force += other.friction_force;
         self.stuck += other.stuck;
         self.max_tension = self.max_tension.max(other.max_tension);
         self.max_strain = self.max_strain.max(other.max_strain);
@@ -109,6 +113,7 @@ impl Sums {
             max_strain: self.max_strain,
             stuck_fraction: self.stuck / node_steps,
             mean_friction_selection: self.sum_s / node_steps,
+            mean_friction_force: self.friction_force / node_steps,
             dissipation: self.dissipated / duration,
             episodes: self.episodes,
             episodes_per_node_per_period: self.episodes as f64 / (cells as f64 * duration / period),
@@ -148,6 +153,9 @@ pub struct Metrics {
     pub stuck_fraction: f64,
     /// Space-time mean of the friction selection `<s>`, stuck points included.
     pub mean_friction_selection: f64,
+    /// Space-time mean of the Coulomb force density `<eps c_d (s - n_F)>` (local `eps`, `n_F` in a
+    /// pipe whose friction varies), N/m.
+    pub mean_friction_force: f64,
     /// Power dissipated by friction, W (equals `power` in a steady state).
     pub dissipation: f64,
     /// Stick-slip episodes that ended in the window.
@@ -164,14 +172,15 @@ pub struct Metrics {
 
 impl Metrics {
     /// Relative residual of the scheme's exact momentum balance over the window,
-    /// `rho dV/T_w + c_v <(v⁺+v⁻)/2> + eps c_d (<s> - n_F) = 0` (elastic and muscle forces cancel
-    /// in the sum over the body), scaled by `c_v |<(v⁺+v⁻)/2>|`. Round-off level for a correct plant.
-    pub fn momentum_residual(&self, density: f64, friction: &crate::params::Friction) -> f64 {
+    /// `rho dV/T_w + c_v <(v⁺+v⁻)/2> + <eps c_d (s - n_F)> = 0` (elastic and muscle forces cancel
+    /// in the sum over the body, periodic or free), scaled by `c_v |<(v⁺+v⁻)/2>|`. Round-off
+    /// level for a correct plant.
+    pub fn momentum_residual(&self, density: f64, viscous: f64) -> f64 {
         let duration = self.end - self.start;
         let r = density * self.mean_velocity_change / duration
-            + friction.viscous * self.centred_velocity
-            + friction.band() * (self.mean_friction_selection - friction.n_f);
-        r.abs() / (friction.viscous * self.centred_velocity.abs())
+            + viscous * self.centred_velocity
+            + self.mean_friction_force;
+        r.abs() / (viscous * self.centred_velocity.abs())
     }
 }
 
@@ -264,6 +273,7 @@ impl MetricsTracker {
         b.sum_v += sums.sum_v;
         b.sum_v_old += sums.sum_v_old;
         b.sum_s += sums.sum_s;
+        b.friction_force += sums.friction_force;
         b.stuck += sums.stuck;
         b.max_tension = b.max_tension.max(sums.max_tension);
         b.max_strain = b.max_strain.max(sums.max_strain);
@@ -275,6 +285,12 @@ impl MetricsTracker {
     pub fn add_episode(&mut self, duration: f64) {
         self.block.episodes += 1;
         self.block.stick_time += duration;
+    }
+
+    /// Corrects the stuck node-steps of the current block by `node_steps` (stick phases timed
+    /// inside their steps, see [`crate::events::Applied`]).
+    pub fn correct_stuck(&mut self, node_steps: f64) {
+        self.block.stuck += node_steps;
     }
 
     /// Adds actuator work done outside a step (a jump of the muscle force), J.

@@ -3,9 +3,11 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{non_negative, positive, within, ParamError};
+use crate::pipe::Pipe;
 
-/// Largest number of cells a plant accepts (memory guard: ~10 arrays of this many f64).
-pub const MAX_CELLS: usize = 1 << 24;
+/// Largest number of cells a plant accepts: the one limit shared by the plant, the wire protocol
+/// and every front end (a co-simulation state of this many cells is about 26 MB).
+pub const MAX_CELLS: usize = 1 << 20;
 /// Smallest number of cells a plant accepts.
 pub const MIN_CELLS: usize = 8;
 /// Largest number of internal steps per communication step (guards against absurd `step`).
@@ -80,11 +82,13 @@ impl Friction {
 /// Discretisation and averaging settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Numerics {
-    /// Number of cells `N` on the periodic body (= number of nodes).
+    /// Number of cells `N` (= number of nodes).
     pub cells: usize,
-    /// Upper bound of the Courant number `c dt / dx`, in (0, 1].
+    /// Courant number `c dt / dx` of the internal step, in (0, 1]; 1 (the default) makes the
+    /// scheme exact along characteristics for the undamped wave equation.
     pub courant: f64,
-    /// Communication (macro) step `H`, s; an integer number of internal steps.
+    /// Requested communication (macro) step, s. The plant uses the nearest whole multiple of the
+    /// internal step `dt` (at least one), [`Discretisation::step`].
     pub step: f64,
     /// Transient skipped before steady-state averaging, s (counted from the last actuation change).
     pub settle: f64,
@@ -119,15 +123,58 @@ impl Numerics {
     }
 }
 
+/// What holds the body's ends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Boundary {
+    /// The body is closed on itself (`u(0) = u(L)`), the paper's setting: nodes at `x_i = i dx`,
+    /// tensions at `x_{i+1/2}`, the last one wrapping around.
+    #[default]
+    Periodic,
+    /// Two free ends with zero tension: nodes at the cell centres `x_i = (i + 1/2) dx`, tensions
+    /// at the interior faces `x = (i + 1) dx`; the last tension entry (the head's end face) is 0.
+    Free,
+}
+
+impl Boundary {
+    /// The name used in scenario files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Boundary::Periodic => "periodic",
+            Boundary::Free => "free",
+        }
+    }
+
+    /// Material position of node `i` for cells of `dx` m, m.
+    pub fn node_position(self, i: usize, dx: f64) -> f64 {
+        match self {
+            Boundary::Periodic => i as f64 * dx,
+            Boundary::Free => (i as f64 + 0.5) * dx,
+        }
+    }
+
+    /// Material position of the tension/muscle-force point `i` (a half node), m.
+    pub fn face_position(self, i: usize, dx: f64) -> f64 {
+        match self {
+            Boundary::Periodic => (i as f64 + 0.5) * dx,
+            Boundary::Free => (i as f64 + 1.0) * dx,
+        }
+    }
+}
+
 /// Everything fixed when a plant is instantiated.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PlantParams {
     /// Body material and geometry.
     pub body: Body,
-    /// Friction law.
+    /// Friction law (the uniform values; [`Self::pipe`] may vary them along the pipe).
     pub friction: Friction,
-    /// Body length `L` (the periodic domain), m.
+    /// Body length `L`, m.
     pub length: f64,
+    /// Periodic body or free ends.
+    pub boundary: Boundary,
+    /// Friction along the pipe.
+    pub pipe: Pipe,
     /// Discretisation.
     pub numerics: Numerics,
 }
@@ -137,12 +184,22 @@ pub struct PlantParams {
 pub struct Discretisation {
     /// Cell size `dx = L / N`, m.
     pub dx: f64,
-    /// Internal time step `dt = H / substeps`, s.
+    /// Internal time step `dt = courant dx / c` (never above the requested Courant number), s.
     pub dt: f64,
     /// Internal steps per communication step.
     pub substeps: u64,
+    /// The communication step actually used, `H = substeps dt`, s.
+    pub step: f64,
     /// Achieved Courant number `c dt / dx`.
     pub courant: f64,
+}
+
+impl Discretisation {
+    /// Communication steps of a run to `t_end` seconds: the first communication point at or after
+    /// `t_end` (at least one step).
+    pub fn steps_until(&self, t_end: f64) -> u64 {
+        ((t_end / self.step) * (1.0 - 1e-12)).ceil().max(1.0) as u64
+    }
 }
 
 impl PlantParams {
@@ -152,31 +209,58 @@ impl PlantParams {
         self.friction.validate()?;
         positive("body.length", self.length)?;
         self.numerics.validate()?;
+        self.pipe.validate()?;
         self.discretisation().map(|_| ())
     }
 
-    /// The grid spacing and the internal step: the largest `dt = H / m` (m integer) with
-    /// `c dt / dx <= courant`.
+    /// The grid spacing and the internal step: `dt = courant dx / c` (rounded down if rounding
+    /// made `c dt / dx` exceed `courant`), and the communication step `H = m dt` with `m` the
+    /// whole number nearest to `numerics.step / dt` (at least 1).
     pub fn discretisation(&self) -> Result<Discretisation, ParamError> {
         let dx = self.length / self.numerics.cells as f64;
         let c = self.body.wave_speed();
-        let dt_max = self.numerics.courant * dx / c;
-        let ratio = self.numerics.step / dt_max;
-        if !ratio.is_finite() || ratio > MAX_SUBSTEPS as f64 {
+        let mut dt = self.numerics.courant * dx / c;
+        while dt > 0.0 && c * dt / dx > self.numerics.courant {
+            dt = f64::from_bits(dt.to_bits() - 1);
+        }
+        let ratio = self.numerics.step / dt;
+        if !(ratio.is_finite() && dt > 0.0) || ratio > MAX_SUBSTEPS as f64 {
             return Err(ParamError::new(
                 "numerics.step",
                 self.numerics.step,
-                format!("at most {MAX_SUBSTEPS} internal steps of {dt_max:.3e} s (CFL) per step"),
+                format!(
+                    "at most {MAX_SUBSTEPS} internal steps of dt = {dt:.3e} s (Courant {} on {} cells) per step",
+                    self.numerics.courant, self.numerics.cells
+                ),
             ));
         }
-        // A tiny tolerance so that a step that is an exact multiple of dt_max is not split further.
-        let substeps = ((ratio * (1.0 - 1e-12)).ceil() as u64).max(1);
-        let dt = self.numerics.step / substeps as f64;
+        let substeps = (ratio.round() as u64).max(1);
         Ok(Discretisation {
             dx,
             dt,
             substeps,
+            step: substeps as f64 * dt,
             courant: c * dt / dx,
         })
+    }
+
+    /// The parameters as controllers are told them: identical when the pipe is disclosed;
+    /// otherwise the nominal friction, uniform, without the map (`pipe.disclose = false`: a real
+    /// crawler does not know its pipe).
+    pub fn told(&self) -> PlantParams {
+        let mut p = self.clone();
+        if !self.pipe.disclose {
+            if let Some(n) = self.pipe.nominal {
+                p.friction.eps = n.eps;
+                p.friction.n_f = n.n_f;
+            }
+            p.pipe.features.clear();
+        }
+        p
+    }
+
+    /// The friction map along the pipe (uniform when the pipe has no features).
+    pub fn friction_map(&self) -> crate::pipe::FrictionMap {
+        self.pipe.compile(self.friction.eps, self.friction.n_f)
     }
 }

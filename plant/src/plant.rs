@@ -91,7 +91,8 @@ struct Backup {
     velocity_sum: f64,
 }
 
-/// A finite-difference crawler, stepped in communication steps of `numerics.step` seconds.
+/// A finite-difference crawler, stepped in communication steps of `H` seconds
+/// ([`Discretisation::step`], a whole number of internal steps).
 #[derive(Debug, Clone)]
 pub struct Plant {
     params: PlantParams,
@@ -117,6 +118,7 @@ impl Plant {
         let disc = params.discretisation()?;
         let solver = Solver::new(&params, &disc);
         let n = params.numerics.cells;
+        let numerics = params.numerics;
         Ok(Self {
             params,
             disc,
@@ -125,15 +127,15 @@ impl Plant {
             t0,
             step: 0,
             macro_step: 0,
-            metrics: MetricsTracker::new(t0, params.numerics.block, params.numerics.settle),
-            events: EventTracker::new(n, params.numerics.min_stick),
+            metrics: MetricsTracker::new(t0, numerics.block, numerics.settle),
+            events: EventTracker::new(n, numerics.min_stick),
             outputs: StepOutputs::default(),
             episodes: Vec::new(),
             backup: Backup {
                 u: Vec::new(),
                 v: Vec::new(),
                 stuck: Vec::new(),
-                metrics: MetricsTracker::new(t0, params.numerics.block, params.numerics.settle),
+                metrics: MetricsTracker::new(t0, numerics.block, numerics.settle),
                 events: EventTracker::new(0, 0.0),
                 step: 0,
                 velocity_sum: 0.0,
@@ -169,7 +171,17 @@ impl Plant {
 
     /// Current time `t0 + n H`, s, computed from the integer step count.
     pub fn time(&self) -> f64 {
-        self.t0 + self.macro_step as f64 * self.params.numerics.step
+        self.t0 + self.macro_step as f64 * self.disc.step
+    }
+
+    /// The communication step `H` actually used (a whole number of internal steps), s.
+    pub fn step_length(&self) -> f64 {
+        self.disc.step
+    }
+
+    /// `(eps, n_F)` each node feels at its current position in the pipe.
+    pub fn node_friction(&self) -> Vec<(f64, f64)> {
+        self.solver.node_friction()
     }
 
     /// Start time, s.
@@ -285,7 +297,7 @@ impl Plant {
 
     /// Drives the body with a travelling wave from now on. Its wavelength must fit the body.
     pub fn set_wave(&mut self, wave: Wave) -> Result<(), ParamError> {
-        wave.validate_for_body(self.params.length, self.cells())?;
+        wave.validate_for_body(self.params.length, self.cells(), self.params.boundary)?;
         if self.drive == Drive::Wave(wave) {
             return Ok(());
         }
@@ -367,10 +379,11 @@ impl Plant {
         self.events.clone_from(&b.events);
         self.step = b.step;
         self.solver.set_velocity_sum(b.velocity_sum);
+        self.solver.refresh_friction();
         self.episodes.clear();
     }
 
-    /// Advances one communication step `H = numerics.step`.
+    /// Advances one communication step `H` ([`Self::step_length`]).
     pub fn advance(&mut self) -> Result<StepOutputs, StepError> {
         self.metrics.closed.clear();
         self.episodes.clear();
@@ -408,13 +421,14 @@ impl Plant {
                 .add_step(t, dt, &sums, e, sums.dissipation * dx * dt);
             if !self.solver.transitions.is_empty() {
                 let first_new = self.episodes.len();
-                self.events.apply(
+                let applied = self.events.apply(
                     self.step,
                     self.t0,
                     dt,
                     &self.solver.transitions,
                     &mut self.episodes,
                 );
+                self.metrics.correct_stuck(applied.stuck_correction);
                 for ep in &self.episodes[first_new..] {
                     self.metrics.add_episode(ep.duration);
                 }
@@ -422,7 +436,7 @@ impl Plant {
             self.step += 1;
         }
         self.macro_step += 1;
-        let h = self.params.numerics.step;
+        let h = self.disc.step;
         // Work of a jump of the muscle force applied just before this step.
         energy += std::mem::take(&mut self.pending_work);
         self.outputs = StepOutputs {
@@ -436,7 +450,7 @@ impl Plant {
     /// A copy of the complete dynamic state.
     pub fn state(&self) -> PlantState {
         PlantState {
-            params: self.params,
+            params: self.params.clone(),
             t0: self.t0,
             step: self.step,
             macro_step: self.macro_step,
@@ -471,7 +485,6 @@ impl Plant {
             ("state.v", state.v.len()),
             ("state.stuck", state.stuck.len()),
             ("state.field", state.field.len()),
-            ("state.events", state.events.cells()),
         ] {
             if len != n {
                 return Err(ParamError::new(
@@ -493,6 +506,7 @@ impl Plant {
         crate::error::finite("state.t0", state.t0)?;
         crate::error::finite("state.pending_work", state.pending_work)?;
         crate::error::finite("state.velocity_sum", state.velocity_sum)?;
+        state.events.validate(n)?;
         if state.step != state.macro_step.saturating_mul(self.disc.substeps) {
             return Err(ParamError::new(
                 "state.step",
@@ -504,7 +518,7 @@ impl Plant {
             ));
         }
         if let Drive::Wave(w) = state.drive {
-            w.validate_for_body(self.params.length, n)?;
+            w.validate_for_body(self.params.length, n, self.params.boundary)?;
             self.solver.set_wave_number(w.k, self.disc.dx);
         }
         self.t0 = state.t0;
@@ -522,13 +536,14 @@ impl Plant {
         self.outputs = state.outputs;
         self.pending_work = state.pending_work;
         self.solver.set_velocity_sum(state.velocity_sum);
+        self.solver.refresh_friction();
         self.episodes.clear();
         Ok(())
     }
 
     /// A plant restored from a state (parameters included).
     pub fn from_state(state: &PlantState) -> Result<Self, ParamError> {
-        let mut plant = Self::new(state.params, state.t0)?;
+        let mut plant = Self::new(state.params.clone(), state.t0)?;
         plant.set_state(state)?;
         Ok(plant)
     }

@@ -8,7 +8,8 @@ use std::f64::consts::TAU;
 use std::path::Path;
 
 use crate::error::{finite, non_negative, positive, ParamError};
-use crate::params::{Body, Friction, Numerics, PlantParams};
+use crate::params::{Body, Boundary, Friction, Numerics, PlantParams};
+use crate::pipe::Pipe;
 use crate::wave::Wave;
 
 /// The paper's scenario, embedded in the binaries.
@@ -61,6 +62,8 @@ struct RawScenario {
     task: Task,
     #[serde(default)]
     limits: Limits,
+    #[serde(default)]
+    pipe: Pipe,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -70,6 +73,8 @@ struct RawBody {
     density: f64,
     youngs_modulus: f64,
     length: Option<f64>,
+    #[serde(default)]
+    boundary: Boundary,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -97,8 +102,8 @@ struct RawNumerics {
 impl Default for RawNumerics {
     fn default() -> Self {
         Self {
-            cells: 128,
-            courant: 0.9,
+            cells: 256,
+            courant: 1.0,
             step: 1e-3,
             t_end: 10.0,
             settle: 5.0,
@@ -116,7 +121,7 @@ struct RawEvents {
 impl Default for RawEvents {
     fn default() -> Self {
         Self {
-            min_stick_periods: 0.02,
+            min_stick_periods: 0.005,
         }
     }
 }
@@ -258,7 +263,7 @@ impl Scenario {
         s.plant.numerics.min_stick = self.min_stick_periods * wave.period();
         s.plant.numerics.block = wave.period();
         s.plant.validate()?;
-        wave.validate_for_body(s.plant.length, s.plant.numerics.cells)?;
+        wave.validate_for_body(s.plant.length, s.plant.numerics.cells, s.plant.boundary)?;
         Ok(s)
     }
 
@@ -417,17 +422,22 @@ impl RawScenario {
             body,
             friction: self.friction,
             length,
+            boundary: self.body.boundary,
+            pipe: self.pipe,
             numerics,
         };
         plant.validate()?;
-        if numerics.step > t_end {
+        let h = plant.discretisation()?.step;
+        if h > t_end {
             return Err(ParamError::new(
                 "numerics.step",
                 numerics.step,
-                format!("<= numerics.t_end = {t_end}"),
+                format!(
+                    "a communication step no longer than numerics.t_end = {t_end} s (it is rounded to H = {h:e} s, a whole number of internal steps)"
+                ),
             ));
         }
-        wave.validate_for_body(length, plant.numerics.cells)?;
+        wave.validate_for_body(length, plant.numerics.cells, plant.boundary)?;
         let needed = plant.numerics.settle + wave.period();
         if t_end < needed {
             return Err(ParamError::new(

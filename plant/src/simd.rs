@@ -7,7 +7,7 @@
 
 use std::ops::{Add, BitOr, BitXor, Mul, Sub};
 
-use wide::{f64x4, CmpLe, CmpNe};
+use wide::{f64x4, CmpGe, CmpLe, CmpLt, CmpNe};
 
 /// Four f64 lanes.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -100,6 +100,12 @@ impl F4 {
         self.0.cmp_ne(f64x4::ZERO).any()
     }
 
+    /// True if any lane lies outside `[lo, hi)`.
+    #[inline(always)]
+    pub fn any_outside(self, lo: Self, hi: Self) -> bool {
+        (self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0)).any()
+    }
+
     /// Lane 0.
     #[inline(always)]
     pub fn first(self) -> f64 {
@@ -165,5 +171,9 @@ mod tests {
         assert_eq!(F4(f64x4::new([1.0, 5.0, -3.0, 2.0])).max_lane(), 5.0);
         assert!(F4(f64x4::new([0.0, 0.0, 1.0, 0.0])).any_nonzero());
         assert!(!z.any_nonzero());
+        let (lo, hi) = (F4::splat(-1.0), F4::splat(1.0));
+        assert!(!F4(f64x4::new([-1.0, 0.0, 0.5, 0.999])).any_outside(lo, hi));
+        assert!(F4(f64x4::new([-1.0, 0.0, 0.5, 1.0])).any_outside(lo, hi));
+        assert!(F4(f64x4::new([-1.5, 0.0, 0.5, 0.0])).any_outside(lo, hi));
     }
 }

@@ -211,7 +211,7 @@ impl ResolvedParameters {
                 .filter(|w| w.f0 > 0.0)
                 .map(|w| p.friction.dry / (w.f0 * w.k)),
             wave_speed: c,
-            step: p.numerics.step,
+            step: plant.step_length(),
             courant: plant.discretisation().courant,
             settle: p.numerics.settle,
         }
@@ -295,8 +295,8 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
         stuck_fraction: m.stuck_fraction,
         mean_friction_selection: m.mean_friction_selection,
         dissipation: m.dissipation,
-        identity_velocity: f.band() * (f.n_f - m.mean_friction_selection) / f.viscous,
-        momentum_residual: m.momentum_residual(p.body.density, &f),
+        identity_velocity: -m.mean_friction_force / f.viscous,
+        momentum_residual: m.momentum_residual(p.body.density, f.viscous),
         events: EventsReport {
             count: m.episodes,
             per_node_per_period: m.episodes_per_node_per_period,
@@ -323,12 +323,13 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
 
 /// Runs the scenario's plant under its wave from t = 0 to `t_end` (rounded to whole steps).
 pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, SimulateError> {
-    let mut slave = Slave::instantiate("simulate", scenario.plant)?;
+    let mut slave = Slave::instantiate("simulate", scenario.plant.clone())?;
     slave.enter_initialization_mode(0.0, None)?;
     slave.set_wave(scenario.wave)?;
     slave.exit_initialization_mode()?;
-    let h = scenario.plant.numerics.step;
-    let steps = (scenario.t_end / h).round().max(1.0) as u64;
+    let disc = scenario.plant.discretisation().map_err(SlaveError::from)?;
+    let h = disc.step;
+    let steps = disc.steps_until(scenario.t_end);
     let bar = opts.progress.then(|| progress_bar(steps, "simulating"));
     let mut log = EpisodeLog::new(opts.max_episodes);
     for n in 0..steps {

@@ -114,16 +114,16 @@ pub struct Slave {
 }
 
 const STATE_MAGIC: &[u8; 8] = b"CRWLSTAT";
-const STATE_VERSION: u32 = 1;
+const STATE_VERSION: u32 = 2;
 
 impl Slave {
     /// `fmi3InstantiateCoSimulation`: validates the parameters and allocates the plant.
     pub fn instantiate(instance_name: &str, params: PlantParams) -> Result<Self, SlaveError> {
-        let plant = Plant::new(params, 0.0)?;
+        let plant = Plant::new(params.clone(), 0.0)?;
         Ok(Self {
             instance_name: instance_name.to_string(),
-            params,
-            original: params,
+            params: params.clone(),
+            original: params.clone(),
             state: LifecycleState::Instantiated,
             inputs: Inputs {
                 mode: 0,
@@ -208,7 +208,7 @@ impl Slave {
                 );
             }
         }
-        match Plant::new(self.params, start_time) {
+        match Plant::new(self.params.clone(), start_time) {
             Ok(p) => self.plant = p,
             Err(e) => return self.fail(e.into()),
         }
@@ -240,7 +240,7 @@ impl Slave {
 
     /// `fmi3Reset`: back to Instantiated with the parameters given at instantiation.
     pub fn reset(&mut self) -> Result<(), SlaveError> {
-        let fresh = Self::instantiate(&self.instance_name, self.original)?;
+        let fresh = Self::instantiate(&self.instance_name, self.original.clone())?;
         *self = fresh;
         Ok(())
     }
@@ -251,7 +251,11 @@ impl Slave {
             "set_wave",
             &[LifecycleState::InitializationMode, LifecycleState::StepMode],
         )?;
-        if let Err(e) = wave.validate_for_body(self.params.length, self.params.numerics.cells) {
+        if let Err(e) = wave.validate_for_body(
+            self.params.length,
+            self.params.numerics.cells,
+            self.params.boundary,
+        ) {
             return self.fail(e.into());
         }
         self.inputs.mode = 1;
@@ -304,7 +308,7 @@ impl Slave {
             return StepStatus::Error(e);
         }
         let now = self.plant.time();
-        let step = self.params.numerics.step;
+        let step = self.plant.step_length();
         if !current_time.is_finite() || (current_time - now).abs() > 1e-9 * step {
             let e = ParamError::new(
                 "current_time",
@@ -508,7 +512,7 @@ impl Slave {
                 got: values.len(),
             });
         }
-        let mut params = self.params;
+        let mut params = self.params.clone();
         let mut inputs = self.inputs.clone();
         let mut rest = values;
         let md = self.model_description();
@@ -574,7 +578,7 @@ impl Slave {
             if let Err(e) = params.validate() {
                 return self.fail(e.into());
             }
-            match Plant::new(params, self.plant.start_time()) {
+            match Plant::new(params.clone(), self.plant.start_time()) {
                 Ok(p) => self.plant = p,
                 Err(e) => return self.fail(e.into()),
             }

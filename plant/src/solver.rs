@@ -1,25 +1,42 @@
 //! The finite-difference kernel: one internal time step of the crawler's wave equation.
 //!
-//! Space: `N` nodes `x_i = i dx` on the periodic body, tensions on the half nodes
-//! `x_{i+1/2}`: `T_{i+1/2} = A_c E (u_{i+1} - u_i) / dx + m_{i+1/2}(t)`, where `m = A_m f` is the
-//! muscle force. The net axial force on node `i` is `(T_{i+1/2} - T_{i-1/2}) / dx`, so elastic and
+//! Space: `N` nodes with tensions on the half nodes between them,
+//! `T_{i+1/2} = A_c E (u_{i+1} - u_i) / dx + m_{i+1/2}(t)`, where `m = A_m f` is the muscle
+//! force. The net axial force on node `i` is `(T_{i+1/2} - T_{i-1/2}) / dx`, so elastic and
 //! muscle forces cancel exactly in the sum over the body (momentum is only changed by friction).
+//! On a periodic body the last tension wraps around to `u_0`; on a free body it is the head's end
+//! face and is zero, as is the tail's (see [`Boundary`]).
 //!
 //! Time: staggered leapfrog (velocities at half steps), explicit in the elastic term, with the
 //! viscous term centred and the Coulomb term implicit at the new velocity:
 //!
 //! ```text
-//! rho (v⁺ - v⁻) / dt = F_i(u^n, t_n) - c_v (v⁺ + v⁻) / 2 - eps c_d (s - n_F),  s ∈ Sgn(v⁺)
+//! rho (v⁺ - v⁻) / dt = F_i(u^n, t_n) - c_v (v⁺ + v⁻) / 2 - eps_i c_d (s - n_F,i),  s ∈ Sgn(v⁺)
 //! u^{n+1} = u^n + dt v⁺
 //! ```
 //!
 //! which is second order for smooth motion and solved per node in closed form
 //! ([`crate::friction::select`]): a node whose non-friction force stays in the static band stays
-//! exactly at rest. The muscle force is `m_{i+1/2}(t) = S_i A(t) + C_i B(t) + g_i`, with
-//! `S_i = sin(k x_{i+1/2})`, `C_i = cos(k x_{i+1/2})` tabulated once per wave number and
-//! `A, B` two numbers per step, so the hot loop has no trigonometry.
+//! exactly at rest. At the default Courant number `c dt / dx = 1` the elastic part is exact along
+//! characteristics (see `docs/numerics.md`). The muscle force is
+//! `m_{i+1/2}(t) = S_i A(t) + C_i B(t) + g_i`, with `S_i = sin(k x_{i+1/2})`,
+//! `C_i = cos(k x_{i+1/2})` tabulated once per wave number and `A, B` two numbers per step, so the
+//! hot loop has no trigonometry.
+//!
+//! Friction is uniform (one band for every node, the fast path) or follows a [`FrictionMap`] along
+//! the pipe: each node then carries its own coefficients, updated whenever its world position
+//! leaves the map's piece it was in.
+//!
+//! Stick timing: a step decides stick and slip for whole steps. A stop is decided on the velocity
+//! the node would have at the step's midpoint `t_{n+1/2}` (an unbiased sample of the stopped
+//! state), a release on the force at the step's start `t_n`, half a step earlier; so a discrete
+//! stick phase outlasts the true one by half a step on average, which the statistics
+//! ([`crate::events`]) take off. A node that lands in the static band for one step only because
+//! its momentum carried it there (the force on it outside the band: a velocity reversal) is
+//! marked ([`Transition::reversal`]) and gets no stick time.
 
-use crate::params::{Discretisation, PlantParams};
+use crate::params::{Boundary, Discretisation, PlantParams};
+use crate::pipe::FrictionMap;
 use crate::simd::F4;
 
 /// Per-step reductions computed in the same pass as the update.
@@ -31,6 +48,8 @@ pub struct StepSums {
     pub sum_v_old: f64,
     /// Sum over nodes of the friction selection `s`.
     pub sum_s: f64,
+    /// Sum over nodes of the Coulomb force density `eps_i c_d (s_i - n_F,i)`, N/m.
+    pub friction_force: f64,
     /// Number of nodes stuck after the step.
     pub stuck: f64,
     /// Largest tension over the half nodes at `t_n`, N.
@@ -41,7 +60,7 @@ pub struct StepSums {
     pub tension_sin: f64,
     /// `sum_i T_{i+1/2} C_i` at `t_n`, N (for the input power).
     pub tension_cos: f64,
-    /// Dissipated power density summed over nodes, `sum_i c_v vm^2 + eps c_d (s - n_F) v⁺`, W/m.
+    /// Dissipated power density summed over nodes, `sum_i c_v vm^2 + eps_i c_d (s - n_F,i) v⁺`, W/m.
     pub dissipation: f64,
 }
 
@@ -54,6 +73,9 @@ pub struct Transition {
     pub stuck: bool,
     /// The node's new velocity, m/s (0 when stuck).
     pub velocity: f64,
+    /// For a stop: the force on the node was outside the static band, so only its momentum put it
+    /// at rest for this step (a velocity reversal, not a stick phase, if it slides on next step).
+    pub reversal: bool,
 }
 
 /// Constants of the update, derived from the parameters.
@@ -63,13 +85,15 @@ struct Coefficients {
     stiffness: f64,
     /// A_c E / dx, N/m
     stiffness_over_dx: f64,
+    /// rho/dt + c_v/2, kg/(m s)
+    a: f64,
     /// (rho/dt - c_v/2) / (rho/dt + c_v/2)
     beta: f64,
     /// 1 / (rho/dt + c_v/2) / dx
     gamma_inv_dx: f64,
-    /// eps c_d n_F / (rho/dt + c_v/2), m/s
+    /// eps c_d n_F / (rho/dt + c_v/2), m/s (uniform friction)
     push: f64,
-    /// eps c_d / (rho/dt + c_v/2), m/s
+    /// eps c_d / (rho/dt + c_v/2), m/s (uniform friction)
     g: f64,
     viscous: f64,
     band: f64,
@@ -77,10 +101,86 @@ struct Coefficients {
     dt: f64,
 }
 
+/// Per-node friction along a pipe whose friction varies.
+#[derive(Debug, Clone)]
+struct NodeFriction {
+    map: FrictionMap,
+    /// World position of each node at zero displacement, m.
+    origin: Vec<f64>,
+    /// Map interval each node is in.
+    index: Vec<usize>,
+    /// The interval's bounds as displacements: the node stays in it while `lo <= u < hi`, m.
+    u_lo: Vec<f64>,
+    u_hi: Vec<f64>,
+    /// `eps_i c_d / a`, m/s.
+    g: Vec<f64>,
+    /// `1 / g_i` (0 where `g_i = 0`), s/m.
+    inv_g: Vec<f64>,
+    /// `eps_i c_d n_F,i / a`, m/s.
+    push: Vec<f64>,
+    /// Groups of four nodes of which one left its interval in the last step.
+    moved: Vec<usize>,
+}
+
+impl NodeFriction {
+    fn new(map: FrictionMap, origin: Vec<f64>) -> Self {
+        let n = origin.len();
+        Self {
+            map,
+            origin,
+            index: vec![0; n],
+            u_lo: vec![0.0; n],
+            u_hi: vec![0.0; n],
+            g: vec![0.0; n],
+            inv_g: vec![0.0; n],
+            push: vec![0.0; n],
+            moved: Vec::new(),
+        }
+    }
+
+    /// Sets node `i`'s coefficients for displacement `u`, searching the map from scratch.
+    fn place(&mut self, i: usize, u: f64, c: &Coefficients, dry: f64) {
+        let x = self.origin[i] + u;
+        let l = self.map.locate(x);
+        self.set(i, l, c, dry);
+    }
+
+    /// Moves node `i` to the interval holding displacement `u`, walking from its current one.
+    fn follow(&mut self, i: usize, u: f64, c: &Coefficients, dry: f64) {
+        if u >= self.u_lo[i] && u < self.u_hi[i] {
+            return;
+        }
+        let x = self.origin[i] + u;
+        let mut l = self.map.interval(self.index[i]);
+        while x >= l.hi {
+            l = self.map.interval(l.index + 1);
+        }
+        while x < l.lo {
+            l = self.map.interval(l.index - 1);
+        }
+        self.set(i, l, c, dry);
+    }
+
+    fn set(&mut self, i: usize, l: crate::pipe::Located, c: &Coefficients, dry: f64) {
+        self.index[i] = l.index;
+        self.u_lo[i] = l.lo - self.origin[i];
+        self.u_hi[i] = l.hi - self.origin[i];
+        let g = l.eps * dry / c.a;
+        self.g[i] = g;
+        self.inv_g[i] = if g > 0.0 { 1.0 / g } else { 0.0 };
+        self.push[i] = g * l.n_f;
+    }
+}
+
 /// Displacement and velocity fields with the internal-step update.
 #[derive(Debug, Clone)]
 pub struct Solver {
     coef: Coefficients,
+    boundary: Boundary,
+    /// Uniform dry friction coefficient.
+    eps: f64,
+    /// Normal load per length `c_d`, N/m.
+    dry: f64,
     /// Displacement `u_i` at nodes, m.
     pub u: Vec<f64>,
     /// Velocity `v_i` over the last internal step, m/s.
@@ -100,7 +200,10 @@ pub struct Solver {
     sin_table: Vec<f64>,
     cos_table: Vec<f64>,
     table_k: f64,
+    /// Tensions of the last step (at its start `t_n`), N.
     tension: Vec<f64>,
+    /// Per-node friction when the pipe's friction varies.
+    map: Option<NodeFriction>,
     /// Nodes that switched stick/slip in the last step (cleared each step).
     pub transitions: Vec<Transition>,
 }
@@ -113,22 +216,36 @@ impl Solver {
         let cv = params.friction.viscous;
         let band = params.friction.band();
         let a = rho / disc.dt + 0.5 * cv;
-        let g = band / a;
         let coef = Coefficients {
             inv_dx: 1.0 / disc.dx,
             stiffness: params.body.stiffness(),
             stiffness_over_dx: params.body.stiffness() / disc.dx,
+            a,
             beta: (rho / disc.dt - 0.5 * cv) / a,
             gamma_inv_dx: 1.0 / (a * disc.dx),
             push: band * params.friction.n_f / a,
-            g,
+            g: band / a,
             viscous: cv,
             band,
             n_f: params.friction.n_f,
             dt: disc.dt,
         };
+        let friction_map = params.friction_map();
+        let map = (!friction_map.is_uniform()).then(|| {
+            let origin = (0..n)
+                .map(|i| params.pipe.start + params.boundary.node_position(i, disc.dx))
+                .collect();
+            let mut m = NodeFriction::new(friction_map, origin);
+            for i in 0..n {
+                m.place(i, 0.0, &coef, params.friction.dry);
+            }
+            m
+        });
         Self {
             coef,
+            boundary: params.boundary,
+            eps: params.friction.eps,
+            dry: params.friction.dry,
             u: vec![0.0; n],
             v: vec![0.0; n],
             stuck: vec![false; n],
@@ -141,6 +258,7 @@ impl Solver {
             cos_table: vec![0.0; n],
             table_k: f64::NAN,
             tension: vec![0.0; n],
+            map,
             transitions: Vec::new(),
         }
     }
@@ -173,6 +291,31 @@ impl Solver {
         }
     }
 
+    /// Re-places every node in the friction map after its displacement was set from outside.
+    pub fn refresh_friction(&mut self) {
+        let (c, dry) = (self.coef, self.dry);
+        if let Some(m) = &mut self.map {
+            for (i, &u) in self.u.iter().enumerate() {
+                m.place(i, u, &c, dry);
+            }
+        }
+    }
+
+    /// `(eps, n_F)` each node feels, from the pipe's map (uniform values without one).
+    pub fn node_friction(&self) -> Vec<(f64, f64)> {
+        match &self.map {
+            None => vec![(self.eps, self.coef.n_f); self.cells()],
+            Some(m) => m
+                .index
+                .iter()
+                .map(|&j| {
+                    let l = m.map.interval(j);
+                    (l.eps, l.n_f)
+                })
+                .collect(),
+        }
+    }
+
     /// Number of nodes.
     pub fn cells(&self) -> usize {
         self.u.len()
@@ -184,7 +327,7 @@ impl Solver {
             return;
         }
         for i in 0..self.cells() {
-            let (s, c) = (k * (i as f64 + 0.5) * dx).sin_cos();
+            let (s, c) = (k * self.boundary.face_position(i, dx)).sin_cos();
             self.sin_table[i] = s;
             self.cos_table[i] = c;
         }
@@ -207,20 +350,33 @@ impl Solver {
         self.sin_table[i] * a + self.cos_table[i] * b + self.field[i]
     }
 
+    /// True if half node `i` is inside the body (always on a periodic body; on a free body every
+    /// face but the head's end face, whose tension is zero).
+    #[inline]
+    pub fn is_interior_face(&self, i: usize) -> bool {
+        self.boundary == Boundary::Periodic || i + 1 < self.cells()
+    }
+
     /// Tension `T_{i+1/2}` for the current displacement and the muscle coefficients `(a, b)`, N.
     pub fn tension_into(&self, a: f64, b: f64, out: &mut Vec<f64>) {
         let n = self.cells();
         out.clear();
         out.extend((0..n).map(|i| {
-            let strain = (self.u[(i + 1) % n] - self.u[i]) * self.coef.inv_dx;
-            self.coef.stiffness * strain + self.muscle(i, a, b)
+            if self.is_interior_face(i) {
+                self.coef.stiffness * self.strain(i) + self.muscle(i, a, b)
+            } else {
+                0.0
+            }
         }));
     }
 
-    /// Strain `(u_{i+1} - u_i) / dx` at half node `i`.
+    /// Strain `(u_{i+1} - u_i) / dx` at half node `i` (0 at a free end face).
     #[inline]
     pub fn strain(&self, i: usize) -> f64 {
         let n = self.cells();
+        if !self.is_interior_face(i) {
+            return 0.0;
+        }
         (self.u[(i + 1) % n] - self.u[i]) * self.coef.inv_dx
     }
 
@@ -232,10 +388,10 @@ impl Solver {
         } else {
             self.tensions::<false>(a, b)
         };
-        let n = if self.coef.g > 0.0 {
-            self.nodes::<true>()
-        } else {
-            self.nodes::<false>()
+        let n = match (&self.map, self.coef.g > 0.0) {
+            (Some(_), _) => self.nodes::<true, true>(),
+            (None, true) => self.nodes::<true, false>(),
+            (None, false) => self.nodes::<false, false>(),
         };
         // Σ v⁻ of this step is Σ v⁺ of the last one: the same numbers summed in the same lane order.
         let sum_v_old = std::mem::replace(&mut self.last_sum_v, n.sum_v);
@@ -243,6 +399,7 @@ impl Solver {
             sum_v: n.sum_v,
             sum_v_old,
             sum_s: n.sum_s,
+            friction_force: n.friction_force,
             stuck: n.stuck,
             max_tension: t.max_tension,
             max_strain: t.max_strain,
@@ -304,124 +461,186 @@ impl Solver {
                 acc.add_scalar(*o, x - h, *s1, *c1);
             }
         }
-        // the last half node wraps around to u[0]
         let last = n - 1;
-        let t = tension_scalar::<FIELD>(
-            &c,
-            self.u[last],
-            self.u[0],
-            self.sin_table[last],
-            self.cos_table[last],
-            self.field[last],
-            a,
-            b,
-        );
-        self.tension[last] = t;
-        acc.add_scalar(
-            t,
-            self.u[0] - self.u[last],
-            self.sin_table[last],
-            self.cos_table[last],
-        );
+        match self.boundary {
+            // The last half node wraps around to u[0].
+            Boundary::Periodic => {
+                let t = tension_scalar::<FIELD>(
+                    &c,
+                    self.u[last],
+                    self.u[0],
+                    self.sin_table[last],
+                    self.cos_table[last],
+                    self.field[last],
+                    a,
+                    b,
+                );
+                self.tension[last] = t;
+                acc.add_scalar(
+                    t,
+                    self.u[0] - self.u[last],
+                    self.sin_table[last],
+                    self.cos_table[last],
+                );
+            }
+            // The head's end face carries no tension (and so no input power).
+            Boundary::Free => self.tension[last] = 0.0,
+        }
         acc.finish(c.inv_dx)
     }
 
     /// Pass 2: new velocities with exact stick, displacements, and the stick/slip switches.
+    /// `MAP`: per-node friction coefficients from the pipe's map.
     #[inline(always)]
-    fn nodes<const FRICTION: bool>(&mut self) -> NodeSums {
+    fn nodes<const FRICTION: bool, const MAP: bool>(&mut self) -> NodeSums {
         let c = self.coef;
         let n = self.cells();
         let k = NodeConstants::new(&c);
         let mut acc = NodeLanes::default();
         let mut changed;
+        let whole = (n - 1) / LANES * LANES;
         {
             let u = &mut self.u[..];
             let v = &mut self.v[..];
             let t = &self.tension[..];
             let flags = &mut self.stuck_flags[..];
             let marks = &mut self.change_marks[..];
-            // node 0 wraps around to the last half node
-            marks[0] = node_scalar::<FRICTION>(
+            let mut map = if MAP { self.map.as_mut() } else { None };
+            let scalar_coefficients = |map: &Option<&mut NodeFriction>, i: usize| match map {
+                Some(m) => (m.g[i], m.push[i], m.inv_g[i]),
+                None => (k.g.first(), k.push.first(), k.inv_g.first()),
+            };
+            // node 0 wraps around to the last half node (zero on a free body)
+            let cf = scalar_coefficients(&map, 0);
+            marks[0] = node_scalar::<FRICTION, MAP>(
                 &k,
                 &mut u[0],
                 &mut v[0],
                 t[0] - t[n - 1],
                 &mut flags[0],
+                cf,
                 &mut acc,
             );
             changed = marks[0].to_bits();
-            let m = n - 1;
-            let (u, v, flags, marks) = (&mut u[1..], &mut v[1..], &mut flags[1..], &mut marks[1..]);
-            let (t_here, t_before) = (&t[1..], &t[..m]);
-            let whole = m / LANES * LANES;
-            let (u, v, flags, marks, t_here, t_before) = (
-                &mut u[..m],
-                &mut v[..m],
-                &mut flags[..m],
-                &mut marks[..m],
-                &t_here[..m],
-                &t_before[..m],
-            );
             let mut any = F4::default();
-            let mut b = 0;
-            while b < whole {
-                let v_old = F4::load(&v[b..b + LANES]);
-                let (v_new, stuck) = node_simd::<FRICTION>(
+            let mut b = 1;
+            while b < 1 + whole {
+                let r = b..b + LANES;
+                let (g, push, inv_g) = match &map {
+                    Some(m) => (
+                        F4::load(&m.g[r.clone()]),
+                        F4::load(&m.push[r.clone()]),
+                        F4::load(&m.inv_g[r.clone()]),
+                    ),
+                    None => (k.g, k.push, k.inv_g),
+                };
+                let (v_new, stuck) = node_simd::<FRICTION, MAP>(
                     &k,
-                    v_old,
-                    F4::load(&t_here[b..b + LANES]) - F4::load(&t_before[b..b + LANES]),
+                    F4::load(&v[r.clone()]),
+                    F4::load(&t[r.clone()]) - F4::load(&t[b - 1..b - 1 + LANES]),
+                    g,
+                    push,
+                    inv_g,
                     &mut acc,
                 );
-                let change = stuck ^ F4::load(&flags[b..b + LANES]);
-                (F4::load(&u[b..b + LANES]) + k.dt * v_new).store(&mut u[b..b + LANES]);
-                v_new.store(&mut v[b..b + LANES]);
-                stuck.store(&mut flags[b..b + LANES]);
-                change.store(&mut marks[b..b + LANES]);
+                let change = stuck ^ F4::load(&flags[r.clone()]);
+                let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
+                u_new.store(&mut u[r.clone()]);
+                v_new.store(&mut v[r.clone()]);
+                stuck.store(&mut flags[r.clone()]);
+                change.store(&mut marks[r.clone()]);
                 any = any | change;
+                if let Some(m) = &mut map {
+                    if u_new.any_outside(F4::load(&m.u_lo[r.clone()]), F4::load(&m.u_hi[r])) {
+                        m.moved.push(b);
+                    }
+                }
                 b += LANES;
             }
             if any.any_nonzero() {
                 changed |= 1;
             }
-            for i in whole..m {
-                marks[i] = node_scalar::<FRICTION>(
+            for i in 1 + whole..n {
+                let cf = scalar_coefficients(&map, i);
+                marks[i] = node_scalar::<FRICTION, MAP>(
                     &k,
                     &mut u[i],
                     &mut v[i],
-                    t_here[i] - t_before[i],
+                    t[i] - t[i - 1],
                     &mut flags[i],
+                    cf,
                     &mut acc,
                 );
                 changed |= marks[i].to_bits();
             }
         }
         if changed != 0 {
-            let whole = n / LANES * LANES;
-            for base in (0..whole).step_by(LANES) {
-                if F4::load(&self.change_marks[base..base + LANES]).any_nonzero() {
-                    for i in base..base + LANES {
-                        self.record_transition(i);
+            if self.change_marks[0].to_bits() != 0 {
+                self.record_transition(0);
+            }
+            let mut b = 1;
+            while b < 1 + whole {
+                if F4::load(&self.change_marks[b..b + LANES]).any_nonzero() {
+                    for i in b..b + LANES {
+                        if self.change_marks[i].to_bits() != 0 {
+                            self.record_transition(i);
+                        }
                     }
                 }
+                b += LANES;
             }
-            for i in whole..n {
-                self.record_transition(i);
+            for i in 1 + whole..n {
+                if self.change_marks[i].to_bits() != 0 {
+                    self.record_transition(i);
+                }
             }
         }
-        acc.finish(&c)
+        if MAP {
+            self.follow_map(whole);
+        }
+        acc.finish(&c, n, MAP)
     }
 
-    #[inline]
-    fn record_transition(&mut self, i: usize) {
-        if self.change_marks[i].to_bits() != 0 {
-            let stuck = self.stuck_flags[i] != 0.0;
-            self.stuck[i] = stuck;
-            self.transitions.push(Transition {
-                node: i as u32,
-                stuck,
-                velocity: self.v[i],
-            });
+    /// Moves the nodes that left their map interval to the interval they are in now: the groups
+    /// the kernel flagged, node 0 and the scalar tail.
+    fn follow_map(&mut self, whole: usize) {
+        let (c, dry) = (self.coef, self.dry);
+        let n = self.cells();
+        let Some(m) = &mut self.map else { return };
+        let mut moved = std::mem::take(&mut m.moved);
+        for &b in &moved {
+            for i in b..b + LANES {
+                m.follow(i, self.u[i], &c, dry);
+            }
         }
+        m.follow(0, self.u[0], &c, dry);
+        for i in 1 + whole..n {
+            m.follow(i, self.u[i], &c, dry);
+        }
+        moved.clear();
+        m.moved = moved;
+    }
+
+    /// Records node `i`'s switch (and, for a stop, whether only momentum put it at rest).
+    fn record_transition(&mut self, i: usize) {
+        let n = self.cells();
+        let stuck = self.stuck_flags[i] != 0.0;
+        self.stuck[i] = stuck;
+        let reversal = stuck && {
+            let (g, push) = match &self.map {
+                Some(m) => (m.g[i], m.push[i]),
+                None => (self.coef.g, self.coef.push),
+            };
+            let left = (i + n - 1) % n;
+            let force = self.coef.gamma_inv_dx * (self.tension[i] - self.tension[left]) + push;
+            force.abs() > g
+        };
+        self.transitions.push(Transition {
+            node: i as u32,
+            stuck,
+            velocity: self.v[i],
+            reversal,
+        });
     }
 }
 
@@ -465,50 +684,62 @@ impl NodeConstants {
 }
 
 /// Four nodes: `b = beta v + gamma (T_{i+1/2} - T_{i-1/2}) / dx + eps c_d n_F / a`, then the exact
-/// stick update of [`crate::friction::select_with_inverse`], lane by lane. Returns the new
-/// velocities and the stick flags (1.0 stuck, 0.0 sliding).
+/// stick update of [`crate::friction::select_with_inverse`], lane by lane, with the friction
+/// coefficients `g`, `push`, `inv_g` of these nodes. Returns the new velocities and the stick
+/// flags (1.0 stuck, 0.0 sliding).
 #[inline(always)]
-fn node_simd<const FRICTION: bool>(
+fn node_simd<const FRICTION: bool, const MAP: bool>(
     k: &NodeConstants,
     v_old: F4,
     tension_difference: F4,
+    g: F4,
+    push: F4,
+    inv_g: F4,
     acc: &mut NodeLanes,
 ) -> (F4, F4) {
     let zero = F4::splat(0.0);
     let one = F4::splat(1.0);
-    let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + k.push;
+    let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + push;
     let (v_new, s, stuck) = if FRICTION {
-        let excess = b.abs() - k.g;
+        let excess = b.abs() - g;
         let v_new = excess.max(zero) | b.sign();
-        let q = (b * k.inv_g).min(one).max(F4::splat(-1.0));
+        let q = (b * inv_g).min(one).max(F4::splat(-1.0));
         let s = excess.select_le(zero, q, one | b.sign());
         (v_new, s, excess.le_as_one(zero))
     } else {
         (b, zero, zero)
     };
     acc.add(v_new, v_old, s, stuck);
+    if MAP {
+        acc.add_map(v_new, s, g, push);
+    }
     (v_new, stuck)
 }
 
 /// One node, the same operations as one lane of [`node_simd`]; returns the change mark.
 #[inline(always)]
-fn node_scalar<const FRICTION: bool>(
+#[allow(clippy::too_many_arguments)]
+fn node_scalar<const FRICTION: bool, const MAP: bool>(
     k: &NodeConstants,
     u: &mut f64,
     v: &mut f64,
     tension_difference: f64,
     flag: &mut f64,
+    (g, push, inv_g): (f64, f64, f64),
     acc: &mut NodeLanes,
 ) -> f64 {
     let v_old = *v;
-    let b = k.beta.first() * v_old + k.gamma_inv_dx.first() * tension_difference + k.push.first();
+    let b = k.beta.first() * v_old + k.gamma_inv_dx.first() * tension_difference + push;
     let (v_new, s, stuck) = if FRICTION {
-        let sel = crate::friction::select_with_inverse(b, k.g.first(), k.inv_g.first());
+        let sel = crate::friction::select_with_inverse(b, g, inv_g);
         (sel.velocity, sel.s, if sel.stuck { 1.0 } else { 0.0 })
     } else {
         (b, 0.0, 0.0)
     };
     acc.add_scalar(v_new, v_old, s, stuck);
+    if MAP {
+        acc.add_map_scalar(v_new, s, g, push);
+    }
     let change = f64::from_bits(stuck.to_bits() ^ flag.to_bits());
     *flag = stuck;
     *v = v_new;
@@ -592,11 +823,20 @@ struct NodeLanes {
     sum_vm2: F4,
     /// sum of |v_new|
     sum_abs_v: F4,
+    /// per-node friction: sum of g |v_new|
+    sum_g_abs_v: F4,
+    /// per-node friction: sum of push v_new
+    sum_push_v: F4,
+    /// per-node friction: sum of g s
+    sum_g_s: F4,
+    /// per-node friction: sum of push
+    sum_push: F4,
 }
 
 struct NodeSums {
     sum_v: f64,
     sum_s: f64,
+    friction_force: f64,
     stuck: f64,
     dissipation: f64,
 }
@@ -613,6 +853,14 @@ impl NodeLanes {
     }
 
     #[inline(always)]
+    fn add_map(&mut self, v_new: F4, s: F4, g: F4, push: F4) {
+        self.sum_g_abs_v = self.sum_g_abs_v + g * v_new.abs();
+        self.sum_push_v = self.sum_push_v + push * v_new;
+        self.sum_g_s = self.sum_g_s + g * s;
+        self.sum_push = self.sum_push + push;
+    }
+
+    #[inline(always)]
     fn add_scalar(&mut self, v_new: f64, v_old: f64, s: f64, stuck: f64) {
         let vs = v_old + v_new;
         self.sum_v = self.sum_v + lane0(v_new);
@@ -622,16 +870,38 @@ impl NodeLanes {
         self.sum_abs_v = self.sum_abs_v + lane0(v_new.abs());
     }
 
+    #[inline(always)]
+    fn add_map_scalar(&mut self, v_new: f64, s: f64, g: f64, push: f64) {
+        self.sum_g_abs_v = self.sum_g_abs_v + lane0(g * v_new.abs());
+        self.sum_push_v = self.sum_push_v + lane0(push * v_new);
+        self.sum_g_s = self.sum_g_s + lane0(g * s);
+        self.sum_push = self.sum_push + lane0(push);
+    }
+
     /// Combines the lanes. Dissipation density summed over nodes:
-    /// `c_v sum ((v⁻ + v⁺)/2)^2 + eps c_d sum (s - n_F) v⁺`, where `s v⁺ = |v⁺|` exactly.
-    fn finish(&self, c: &Coefficients) -> NodeSums {
+    /// `c_v sum ((v⁻ + v⁺)/2)^2 + sum eps_i c_d (s - n_F,i) v⁺`, where `s v⁺ = |v⁺|` exactly;
+    /// with per-node friction `eps_i c_d = a g_i` and `eps_i c_d n_F,i = a push_i`.
+    fn finish(&self, c: &Coefficients, cells: usize, map: bool) -> NodeSums {
         let sum_v = self.sum_v.sum();
+        let sum_s = self.sum_s.sum();
+        let viscous = 0.25 * c.viscous * self.sum_vm2.sum();
+        let (coulomb, friction_force) = if map {
+            (
+                c.a * (self.sum_g_abs_v.sum() - self.sum_push_v.sum()),
+                c.a * (self.sum_g_s.sum() - self.sum_push.sum()),
+            )
+        } else {
+            (
+                c.band * (self.sum_abs_v.sum() - c.n_f * sum_v),
+                c.band * (sum_s - c.n_f * cells as f64),
+            )
+        };
         NodeSums {
             sum_v,
-            sum_s: self.sum_s.sum(),
+            sum_s,
+            friction_force,
             stuck: self.stuck.sum(),
-            dissipation: 0.25 * c.viscous * self.sum_vm2.sum()
-                + c.band * (self.sum_abs_v.sum() - c.n_f * sum_v),
+            dissipation: viscous + coulomb,
         }
     }
 }

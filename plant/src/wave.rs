@@ -4,6 +4,7 @@ use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 use crate::error::{finite, non_negative, positive, ParamError};
+use crate::params::Boundary;
 
 /// Minimum number of cells per wavelength the plant accepts for a travelling wave.
 pub const MIN_CELLS_PER_WAVELENGTH: f64 = 8.0;
@@ -41,24 +42,33 @@ impl Wave {
         Ok(())
     }
 
-    /// Validates the wave against a periodic body of `length` m with `cells` cells: the wavelength
-    /// must fit the body a whole number of times and be resolved by enough cells.
-    pub fn validate_for_body(&self, length: f64, cells: usize) -> Result<(), ParamError> {
+    /// Validates the wave against a body of `length` m with `cells` cells: on a periodic body the
+    /// wavelength must fit the body a whole number of times; on any body it must be resolved by
+    /// at least [`MIN_CELLS_PER_WAVELENGTH`] cells.
+    pub fn validate_for_body(
+        &self,
+        length: f64,
+        cells: usize,
+        boundary: Boundary,
+    ) -> Result<(), ParamError> {
         self.validate()?;
         let fits = self.k * length / TAU;
-        let whole = fits.round();
-        if whole < 1.0 || (fits - whole).abs() > 1e-9 * whole.max(1.0) {
-            return Err(ParamError::new(
-                "wave.k",
-                self.k,
-                format!(
-                    "a wavelength that fits the periodic body (L = {length} m) a whole number of times: \
-                     k = 2 pi m / L for integer m >= 1 (k L / 2 pi = {fits:.6})"
-                ),
-            ));
+        if boundary == Boundary::Periodic {
+            let whole = fits.round();
+            if whole < 1.0 || (fits - whole).abs() > 1e-9 * whole.max(1.0) {
+                return Err(ParamError::new(
+                    "wave.k",
+                    self.k,
+                    format!(
+                        "a wavelength that fits the periodic body (L = {length} m) a whole number of times: \
+                         k = 2 pi m / L for integer m >= 1 (k L / 2 pi = {fits:.6}); a free body \
+                         (body.boundary = \"free\") takes any wavelength"
+                    ),
+                ));
+            }
         }
-        let per_wave = cells as f64 / whole;
-        if per_wave < MIN_CELLS_PER_WAVELENGTH {
+        let per_wave = cells as f64 / fits;
+        if per_wave < MIN_CELLS_PER_WAVELENGTH * (1.0 - 1e-9) {
             return Err(ParamError::new(
                 "wave.k",
                 self.k,

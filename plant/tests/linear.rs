@@ -9,12 +9,12 @@ use crawler_plant::slave::{Slave, StepStatus};
 /// Runs to `t_end` and returns the complex amplitude (a, b) of u(x, t_end) against
 /// cos(kx - wt) and sin(kx - wt), plus the steady metrics.
 fn amplitude(s: &Scenario) -> ((f64, f64), crawler_plant::metrics::Metrics) {
-    let mut slave = Slave::instantiate("linear", s.plant).unwrap();
+    let mut slave = Slave::instantiate("linear", s.plant.clone()).unwrap();
     slave.enter_initialization_mode(0.0, None).unwrap();
     slave.set_wave(s.wave).unwrap();
     slave.exit_initialization_mode().unwrap();
-    let h = s.plant.numerics.step;
-    let steps = (s.t_end / h).round() as u64;
+    let h = slave.plant().step_length();
+    let steps = slave.plant().discretisation().steps_until(s.t_end);
     for n in 0..steps {
         assert_eq!(slave.do_step(n as f64 * h, h), StepStatus::Ok);
     }

@@ -82,47 +82,9 @@ fn stick_slip_statistics_converge_where_the_body_really_sticks() {
         a.events.mean_duration,
         b.events.mean_duration
     );
-    // Also under a smaller time step at fixed grid.
-    let c = at(256, 1.0, 0.2, 0.5, Some(0.45));
+    // Also under a smaller time step at fixed grid (velocity reversals that land in the static
+    // band for a step are not stick phases, whatever dt: stick_statistics.rs).
+    let c = at(256, 1.0, 0.2, 0.5, Some(0.5));
     assert!(rel(c.stuck_fraction, b.stuck_fraction) < 0.1);
     assert!(rel(c.events.per_node_per_period, rb) < 0.1);
-}
-
-#[test]
-fn episode_count_does_not_grow_as_dt_shrinks_where_the_body_hardly_sticks() {
-    let courants = [0.9, 0.45, 0.225];
-    let counts: Vec<u64> = courants
-        .iter()
-        .map(|&c| at(128, 0.1, 0.5, 0.95, Some(c)).events.count)
-        .collect();
-    for w in counts.windows(2) {
-        assert!(w[1] <= w[0], "episode count grew as dt shrank: {counts:?}");
-    }
-    // Velocities that merely pass through zero do land in the static band for single steps; they
-    // exist here (so the check above is not vacuous) and their share of time vanishes with dt.
-    let raw: Vec<Report> = courants
-        .iter()
-        .map(|&c| at_with(128, 0.1, 0.5, 0.95, Some(c), Some(0.0)))
-        .collect();
-    assert!(
-        raw.iter().all(|r| r.events.count > 0),
-        "no single-step sticks at all: {:?}",
-        raw.iter().map(|r| r.events.count).collect::<Vec<_>>()
-    );
-    for w in raw.windows(2) {
-        assert!(
-            w[1].events.mean_duration < w[0].events.mean_duration,
-            "single-step sticks should shorten with dt"
-        );
-        assert!(
-            w[1].stuck_fraction < w[0].stuck_fraction,
-            "the stuck share should shrink under refinement"
-        );
-    }
-    println!(
-        "counts {counts:?}, raw {:?}",
-        raw.iter()
-            .map(|r| (r.events.count, r.events.mean_duration, r.stuck_fraction))
-            .collect::<Vec<_>>()
-    );
 }

@@ -22,7 +22,7 @@ fn unknown_keys_and_wrong_types_name_the_line() {
     let text = PAPER_TOML.replace("eps = 0.1 ", "eps = 0.1\nfoo = 3 ");
     let e = load(&text).unwrap_err().to_string();
     assert!(e.contains("foo") && e.contains("line"), "{e}");
-    let text = PAPER_TOML.replace("cells = 128", "cells = \"many\"");
+    let text = PAPER_TOML.replace("cells = 768", "cells = \"many\"");
     let e = load(&text).unwrap_err().to_string();
     assert!(e.contains("line") && e.contains("cells"), "{e}");
 }
@@ -180,7 +180,81 @@ fn every_shipped_scenario_loads_and_the_embedded_one_is_the_file() {
     let ss = load(&ss).unwrap();
     assert_eq!(
         (ss.plant.friction.eps, ss.wave.f0, ss.plant.numerics.cells),
-        (1.0, 0.2, 256)
+        (1.0, 0.2, 1536)
     );
     assert!((ss.wave.omega / ss.natural_frequency() - 0.5).abs() < 1e-12);
+}
+
+#[test]
+fn the_communication_step_is_a_whole_number_of_characteristic_steps() {
+    use crawler_plant::params::Boundary;
+    let s = Scenario::paper();
+    let d = s.plant.discretisation().unwrap();
+    let c = s.plant.body.wave_speed();
+    // Courant number 1 to round-off, never above.
+    assert!(d.courant <= 1.0 && d.courant > 1.0 - 1e-15, "{}", d.courant);
+    assert!((c * d.dt / d.dx - 1.0).abs() < 1e-15);
+    // H is the whole multiple of dt nearest to the requested 1 ms.
+    assert_eq!(d.step, d.substeps as f64 * d.dt);
+    assert!((d.step - 1e-3).abs() <= 0.5 * d.dt, "H = {}", d.step);
+    // A run ends at the first communication point at or after t_end.
+    let n = d.steps_until(s.t_end);
+    assert!(n as f64 * d.step >= s.t_end * (1.0 - 1e-12));
+    assert!((n - 1) as f64 * d.step < s.t_end);
+    // A requested step far from a multiple of dt is rounded, and t_end is still reached.
+    let text = PAPER_TOML.replace("step = 1.0e-3", "step = 0.3");
+    let s = load(&text).unwrap();
+    let d = s.plant.discretisation().unwrap();
+    assert!((d.step - 0.3).abs() <= 0.5 * d.dt);
+    assert!(d.steps_until(s.t_end) as f64 * d.step >= s.t_end * (1.0 - 1e-12));
+    assert_eq!(s.plant.boundary, Boundary::Periodic);
+}
+
+#[test]
+fn boundary_and_pipe_sections_are_read_and_checked() {
+    use crawler_plant::params::Boundary;
+    let free = PAPER_TOML.replace(
+        "youngs_modulus = 140e3  # E, Pa (earthworm); A_c E = 14 N",
+        "youngs_modulus = 140e3\nboundary = \"free\"\nlength = 0.7",
+    );
+    let s = load(&free).unwrap();
+    assert_eq!(s.plant.boundary, Boundary::Free);
+    // a free body takes a wave that does not fit it
+    assert!((s.plant.length - 0.7).abs() < 1e-15);
+    let periodic = free.replace("boundary = \"free\"\n", "");
+    let e = load(&periodic).unwrap_err().to_string();
+    assert!(e.contains("wave.k") && e.contains("free"), "{e}");
+    let bad = free.replace("boundary = \"free\"", "boundary = \"clamped\"");
+    let e = load(&bad).unwrap_err().to_string();
+    assert!(e.contains("clamped") && e.contains("line"), "{e}");
+
+    let pipe = format!(
+        "{PAPER_TOML}\n[pipe]\ndisclose = false\nnominal = {{ eps = 0.1, n_f = 0.5 }}\n\
+         [[pipe.features]]\nkind = \"patch\"\nfrom = 2.0\nto = 3.0\neps = 0.8\n"
+    );
+    let s = load(&pipe).unwrap();
+    assert!(!s.plant.pipe.disclose);
+    let m = s.plant.friction_map();
+    assert_eq!(m.at(2.5), (0.8, 0.5));
+    assert_eq!(m.at(1.5), (0.1, 0.5));
+    for (text, field) in [
+        (
+            pipe.replace("nominal = { eps = 0.1, n_f = 0.5 }\n", ""),
+            "pipe.nominal",
+        ),
+        (pipe.replace("to = 3.0", "to = 1.0"), "pipe.features[0].to"),
+        (
+            pipe.replace("eps = 0.8", "eps = -0.8"),
+            "pipe.features[0].eps",
+        ),
+        (
+            pipe.replace("n_f = 0.5 }", "n_f = 1.5 }"),
+            "pipe.nominal.n_f",
+        ),
+    ] {
+        let e = load(&text).unwrap_err().to_string();
+        assert!(e.contains(field), "expected an error naming {field}: {e}");
+    }
+    let e = load(&pipe.replace("kind = \"patch\"", "kind = \"hole\"")).unwrap_err();
+    assert!(e.to_string().contains("hole"), "{e}");
 }

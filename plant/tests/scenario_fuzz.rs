@@ -9,7 +9,7 @@ fn check(text: &str) {
     if let Ok(s) = Scenario::from_toml(text, "fuzz.toml", &Overrides::default()) {
         s.plant.validate().unwrap();
         s.wave
-            .validate_for_body(s.plant.length, s.plant.numerics.cells)
+            .validate_for_body(s.plant.length, s.plant.numerics.cells, s.plant.boundary)
             .unwrap();
         assert!(s.t_end.is_finite() && s.t_end > 0.0);
     }
@@ -57,7 +57,7 @@ mod checkpoints {
 
     fn sample() -> (Vec<u8>, Vec<u8>) {
         let s = Scenario::paper();
-        let mut plant = Plant::new(s.plant, 0.0).unwrap();
+        let mut plant = Plant::new(s.plant.clone(), 0.0).unwrap();
         plant.set_wave(s.wave).unwrap();
         for _ in 0..20 {
             plant.advance().unwrap();

@@ -21,7 +21,7 @@ fn stick_slip() -> Scenario {
 }
 
 fn started(s: &Scenario) -> Slave {
-    let mut slave = Slave::instantiate("test", s.plant).unwrap();
+    let mut slave = Slave::instantiate("test", s.plant.clone()).unwrap();
     slave.enter_initialization_mode(0.0, None).unwrap();
     slave.set_wave(s.wave).unwrap();
     slave.exit_initialization_mode().unwrap();
@@ -29,7 +29,7 @@ fn started(s: &Scenario) -> Slave {
 }
 
 fn steps(slave: &mut Slave, n: u64) {
-    let h = slave.params().numerics.step;
+    let h = slave.plant().step_length();
     for _ in 0..n {
         let t = slave.plant().time();
         assert_eq!(slave.do_step(t, h), StepStatus::Ok);
@@ -47,7 +47,7 @@ fn checkpoint_restore_and_continue_is_bit_identical() {
     let bytes = Slave::serialize_state(&first.get_state());
     drop(first);
     let state = Slave::deserialize_state(&bytes).unwrap();
-    let mut resumed = Slave::instantiate("resumed", state.params).unwrap();
+    let mut resumed = Slave::instantiate("resumed", state.params.clone()).unwrap();
     resumed.enter_initialization_mode(0.0, None).unwrap();
     resumed.exit_initialization_mode().unwrap();
     resumed.set_state(&state).unwrap();
@@ -120,9 +120,11 @@ fn corrupted_or_foreign_states_are_refused() {
 #[test]
 fn illegal_lifecycle_calls_are_refused() {
     let s = stick_slip();
-    let mut slave = Slave::instantiate("x", s.plant).unwrap();
+    let mut slave = Slave::instantiate("x", s.plant.clone()).unwrap();
+    // the communication step H: a whole number of internal steps near the requested 1 ms
+    let h = s.plant.discretisation().unwrap().step;
     assert!(matches!(
-        slave.do_step(0.0, 1e-3),
+        slave.do_step(0.0, h),
         StepStatus::Error(SlaveError::IllegalCall { .. })
     ));
     assert_eq!(slave.lifecycle(), LifecycleState::Error);
@@ -148,7 +150,7 @@ fn illegal_lifecycle_calls_are_refused() {
     slave.set_wave(s.wave).unwrap();
     slave.exit_initialization_mode().unwrap();
     // wrong current time
-    assert!(matches!(slave.do_step(0.5, 1e-3), StepStatus::Error(_)));
+    assert!(matches!(slave.do_step(0.5, h), StepStatus::Error(_)));
     slave.reset().unwrap();
     slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
     slave.exit_initialization_mode().unwrap();
@@ -162,17 +164,20 @@ fn illegal_lifecycle_calls_are_refused() {
     slave.exit_initialization_mode().unwrap();
     // not a whole number of communication steps: discarded, state unchanged
     assert!(
-        matches!(slave.do_step(0.0, 1.5e-3), StepStatus::Discard { last_successful_time, .. } if last_successful_time == 0.0)
+        matches!(slave.do_step(0.0, 1.5 * h), StepStatus::Discard { last_successful_time, .. } if last_successful_time == 0.0)
     );
-    assert_eq!(slave.do_step(0.0, 2e-3), StepStatus::Ok);
+    assert_eq!(slave.do_step(0.0, 2.0 * h), StepStatus::Ok);
     // beyond the stop time
-    assert!(matches!(slave.do_step(2e-3, 1e-2), StepStatus::Error(_)));
+    assert!(matches!(
+        slave.do_step(2.0 * h, 10.0 * h),
+        StepStatus::Error(_)
+    ));
     slave.reset().unwrap();
     slave.enter_initialization_mode(0.0, None).unwrap();
     slave.exit_initialization_mode().unwrap();
     slave.terminate().unwrap();
     assert!(matches!(
-        slave.do_step(0.0, 1e-3),
+        slave.do_step(0.0, h),
         StepStatus::Error(SlaveError::IllegalCall { .. })
     ));
 }
@@ -180,7 +185,7 @@ fn illegal_lifecycle_calls_are_refused() {
 #[test]
 fn value_references_read_and_write() {
     let s = stick_slip();
-    let mut slave = Slave::instantiate("vr", s.plant).unwrap();
+    let mut slave = Slave::instantiate("vr", s.plant.clone()).unwrap();
     slave
         .set_float64(&[vr::EPS, vr::N_F], &[0.7, 0.25])
         .unwrap();
@@ -207,7 +212,8 @@ fn value_references_read_and_write() {
         )
         .unwrap();
     slave.exit_initialization_mode().unwrap();
-    assert_eq!(slave.do_step(0.0, 1e-3), StepStatus::Ok);
+    let h = slave.plant().step_length();
+    assert_eq!(slave.do_step(0.0, h), StepStatus::Ok);
     let n = s.plant.numerics.cells;
     assert_eq!(
         slave
@@ -220,7 +226,7 @@ fn value_references_read_and_write() {
     assert_eq!(slave.get_uint64(&[vr::CELLS]).unwrap(), vec![n as u64]);
     // the same wave through the typed call gives the same trajectory
     let mut typed = started(&s);
-    assert_eq!(typed.do_step(0.0, 1e-3), StepStatus::Ok);
+    assert_eq!(typed.do_step(0.0, h), StepStatus::Ok);
     assert_eq!(typed.plant().displacement(), slave.plant().displacement());
     // field input of the wrong size is refused
     slave.set_uint64(&[vr::ACTUATION_MODE], &[2]).unwrap();
@@ -233,7 +239,7 @@ fn value_references_read_and_write() {
 #[test]
 fn model_description_lists_every_variable_once() {
     let s = stick_slip();
-    let slave = Slave::instantiate("md", s.plant).unwrap();
+    let slave = Slave::instantiate("md", s.plant.clone()).unwrap();
     let md = slave.model_description();
     let mut refs: Vec<u32> = md.variables.iter().map(|v| v.value_reference).collect();
     refs.sort_unstable();
@@ -258,7 +264,7 @@ fn model_description_lists_every_variable_once() {
 #[test]
 fn waves_that_do_not_fit_the_body_are_refused() {
     let s = stick_slip();
-    let mut slave = Slave::instantiate("fit", s.plant).unwrap();
+    let mut slave = Slave::instantiate("fit", s.plant.clone()).unwrap();
     slave.enter_initialization_mode(0.0, None).unwrap();
     let bad = Wave {
         k: 1.5 * s.wave.k,
@@ -289,13 +295,28 @@ fn huge_actuation_is_discarded_and_rolled_back() {
         .map(|i| if i % 2 == 0 { 1e308 } else { -1e308 })
         .collect();
     slave.set_field(&field).unwrap();
-    match slave.do_step(slave.plant().time(), 1e-3) {
+    let h = slave.plant().step_length();
+    match slave.do_step(slave.plant().time(), h) {
         StepStatus::Discard {
             last_successful_time,
             ..
-        } => assert!((last_successful_time - 5e-3).abs() < 1e-15),
+        } => assert_eq!(last_successful_time, 5.0 * h),
         other => panic!("expected a discard, got {other:?}"),
     }
     assert_eq!(slave.get_state().u, before.u);
     assert!(slave.plant().displacement().iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn states_of_the_earlier_format_are_refused_with_the_reason() {
+    // A state blob as format 1 wrote it: magic, version 1, CRC-32 of the payload, payload.
+    let s = stick_slip();
+    let slave = started(&s);
+    let mut bytes = Slave::serialize_state(&slave.get_state());
+    bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let e = Slave::deserialize_state(&bytes).unwrap_err().to_string();
+    assert!(
+        e.contains("format version 1") && e.contains("Courant number 0.9") && e.contains("rerun"),
+        "{e}"
+    );
 }

@@ -605,14 +605,30 @@ pub struct ModelInfo {
     pub viscous: f64,
     /// c_d, N/m.
     pub dry: f64,
-    /// eps.
+    /// eps: the true uniform value when `disclosed`, else the nominal value the scenario tells
+    /// controllers.
     pub eps: f64,
-    /// n_F.
+    /// n_F (true or nominal, as `eps`).
     pub n_f: f64,
     /// Transient skipped by the plant's steady metrics, s.
     pub settle: f64,
     /// The FMI-style model description, JSON text.
     pub model_description: String,
+    /// `"periodic"` (the body closed on itself) or `"free"` (two free ends). Absent: periodic.
+    #[serde(default = "periodic")]
+    pub boundary: String,
+    /// True if `eps` and `n_f` are the pipe's true friction (and the model description holds its
+    /// map); false if they are nominal values and the environment is not disclosed. Absent: true.
+    #[serde(default = "disclosed")]
+    pub disclosed: bool,
+}
+
+fn periodic() -> String {
+    "periodic".to_string()
+}
+
+fn disclosed() -> bool {
+    true
 }
 
 impl Message for ModelInfo {
@@ -650,6 +666,13 @@ impl Message for ModelInfo {
             ("settle", self.settle),
         ] {
             finite(&format!("model.{name}"), x)?;
+        }
+        if !matches!(self.boundary.as_str(), "periodic" | "free") {
+            return Err(ProtocolError::invalid(
+                "model.boundary",
+                format!("{:?}", self.boundary.chars().take(32).collect::<String>()),
+                "\"periodic\" or \"free\"",
+            ));
         }
         text("model.model_description", &self.model_description)
     }

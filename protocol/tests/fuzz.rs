@@ -116,6 +116,8 @@ fn valid_messages() -> Vec<(&'static str, Vec<u8>)> {
         n_f: 0.5,
         settle: 5.0,
         model_description: "{}".into(),
+        boundary: "periodic".into(),
+        disclosed: true,
     };
     vec![
         ("state", encode(&state)),

@@ -148,6 +148,8 @@ fn model_info() -> ModelInfo {
         n_f: 0.5,
         settle: 5.0,
         model_description: "{}".into(),
+        boundary: "periodic".into(),
+        disclosed: true,
     }
 }
 

@@ -52,7 +52,7 @@ pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
         omega: o.omega,
         phase: 0.0,
     };
-    wave.validate_for_body(ctx.length, ctx.cells)?;
+    wave.validate_for_body(ctx.length, ctx.cells, ctx.boundary)?;
     // Make the constraints hold on a plant like the one driven (same body, grid and step), not
     // only in the model: lower f0 with a few in-process plant runs until they hold with a margin.
     let certification = if ctx.options.certify {

@@ -11,7 +11,7 @@ pub struct Pulse {
 
 pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
     let wave = ctx.wave();
-    wave.validate_for_body(ctx.length, ctx.cells)?;
+    wave.validate_for_body(ctx.length, ctx.cells, ctx.boundary)?;
     Ok(Box::new(Pulse {
         wave,
         cells: ctx.cells,

@@ -17,7 +17,7 @@ pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
         omega: base.k * ctx.body.wave_speed(),
         ..base
     };
-    wave.validate_for_body(ctx.length, ctx.cells)?;
+    wave.validate_for_body(ctx.length, ctx.cells, ctx.boundary)?;
     Ok(Box::new(Resonance { wave }))
 }
 

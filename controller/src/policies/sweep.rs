@@ -39,7 +39,7 @@ pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
         omega: alphas[0] * omega_n,
         ..base
     };
-    wave.validate_for_body(ctx.length, ctx.cells)?;
+    wave.validate_for_body(ctx.length, ctx.cells, ctx.boundary)?;
     Ok(Box::new(Sweep {
         base,
         omega_n,

@@ -13,7 +13,7 @@ pub struct FixedWave {
 
 pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
     let wave = ctx.wave();
-    wave.validate_for_body(ctx.length, ctx.cells)?;
+    wave.validate_for_body(ctx.length, ctx.cells, ctx.boundary)?;
     Ok(Box::new(FixedWave { wave }))
 }
 

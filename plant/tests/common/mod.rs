@@ -55,3 +55,45 @@ impl Linear {
         }
     }
 }
+
+pub mod travelling_wave;
+
+/// A scenario on the paper's body and friction coefficients with the given friction, wave
+/// (`alpha = omega / omega_n`), body length and grid, from TOML text (`extra` is appended).
+#[allow(clippy::too_many_arguments)]
+pub fn custom(
+    eps: f64,
+    f0: f64,
+    k: f64,
+    alpha: f64,
+    length: f64,
+    cells: usize,
+    t_end: f64,
+    extra: &str,
+) -> Scenario {
+    let text = format!(
+        r#"
+name = "test"
+[body]
+area = 1e-4
+density = 0.1
+youngs_modulus = 140e3
+length = {length:?}
+[friction]
+viscous = 1.0
+dry = 1.0
+eps = {eps:?}
+n_f = 0.5
+[actuation]
+f0 = {f0:?}
+k = {k:?}
+alpha = {alpha:?}
+[numerics]
+cells = {cells}
+t_end = {t_end:?}
+settle = 5.0
+{extra}
+"#
+    );
+    Scenario::from_toml(&text, "<test>", &Overrides::default()).expect("valid test scenario")
+}

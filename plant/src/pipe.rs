@@ -1,0 +1,603 @@
+//! A pipe whose friction varies along it: `eps` and `n_F` as functions of the world position.
+//!
+//! A node at material position `x` (m along the body, from its tail) with displacement `u` is at the
+//! world position `X = start + x + u` in the pipe (`start` is where the tail was at `t = 0`). Each
+//! node uses the friction of the pipe at its own position, at every internal step.
+//!
+//! The map is built from the scenario's uniform values (`friction.eps`, `friction.n_f`) and a list
+//! of features applied in order:
+//!
+//! - a **patch** sets `eps` and/or `n_F` to a constant on `[from, to)`;
+//! - a **ramp** sets them to a linear interpolation between two values on `[from, to)`;
+//! - a **texture** adds a zero-mean random field with standard deviations `eps_std`, `n_f_std` and
+//!   correlation length `correlation` on `[from, to)`: an Ornstein–Uhlenbeck process (covariance
+//!   `exp(-|dX| / correlation)`) sampled every `correlation / 8` from a seeded ChaCha8 generator and
+//!   interpolated linearly in between.
+//!
+//! After every feature `eps` is clipped to `>= 0` and `n_F` to `[0, 1]`. The composed map is
+//! compiled into a piecewise-constant function ([`FrictionMap`]): patch edges are kept exactly;
+//! ramps and textures are held constant over intervals of `resolution` metres (their value at the
+//! interval's midpoint). Outside all features the uniform values hold.
+
+use rand_chacha::rand_core::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{finite, non_negative, positive, within, ParamError};
+
+/// Largest number of constant pieces a compiled map may have.
+pub const MAX_PIECES: usize = 1 << 20;
+
+/// Default resolution of ramps and textures, m.
+pub const DEFAULT_RESOLUTION: f64 = 1e-3;
+
+/// What controllers are told about the friction when the pipe is not disclosed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Nominal {
+    /// Dry friction coefficient controllers are told.
+    pub eps: f64,
+    /// Asymmetry controllers are told.
+    pub n_f: f64,
+}
+
+/// One change of friction along the pipe.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Feature {
+    /// Constant values on `[from, to)`.
+    Patch {
+        /// Start, world position, m.
+        from: f64,
+        /// End, m.
+        to: f64,
+        /// `eps` on the patch (unchanged if absent).
+        eps: Option<f64>,
+        /// `n_F` on the patch (unchanged if absent).
+        n_f: Option<f64>,
+    },
+    /// Linear change on `[from, to)` from the first value at `from` to the second at `to`.
+    Ramp {
+        /// Start, m.
+        from: f64,
+        /// End, m.
+        to: f64,
+        /// `[eps at from, eps at to]` (unchanged if absent).
+        eps: Option<[f64; 2]>,
+        /// `[n_F at from, n_F at to]` (unchanged if absent).
+        n_f: Option<[f64; 2]>,
+    },
+    /// A seeded random texture added on `[from, to)`.
+    Texture {
+        /// Start, m.
+        from: f64,
+        /// End, m.
+        to: f64,
+        /// Standard deviation added to `eps`.
+        #[serde(default)]
+        eps_std: f64,
+        /// Standard deviation added to `n_F`.
+        #[serde(default)]
+        n_f_std: f64,
+        /// Correlation length, m.
+        correlation: f64,
+        /// Seed of the generator.
+        seed: u64,
+    },
+}
+
+impl Feature {
+    fn range(&self) -> (f64, f64) {
+        match *self {
+            Feature::Patch { from, to, .. }
+            | Feature::Ramp { from, to, .. }
+            | Feature::Texture { from, to, .. } => (from, to),
+        }
+    }
+}
+
+/// The pipe: where the body starts, what controllers are told, and how friction varies.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pipe {
+    /// World position of the body's tail (`x = 0`) at `t = 0`, m.
+    #[serde(default)]
+    pub start: f64,
+    /// True if controllers are told the true friction (uniform values and map).
+    #[serde(default = "yes")]
+    pub disclose: bool,
+    /// What controllers are told when `disclose` is false.
+    #[serde(default)]
+    pub nominal: Option<Nominal>,
+    /// Hold ramps and textures constant over intervals of this length, m.
+    #[serde(default = "default_resolution")]
+    pub resolution: f64,
+    /// Changes of friction, applied in order.
+    #[serde(default)]
+    pub features: Vec<Feature>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn default_resolution() -> f64 {
+    DEFAULT_RESOLUTION
+}
+
+impl Default for Pipe {
+    fn default() -> Self {
+        Self {
+            start: 0.0,
+            disclose: true,
+            nominal: None,
+            resolution: DEFAULT_RESOLUTION,
+            features: Vec::new(),
+        }
+    }
+}
+
+impl Pipe {
+    /// True if no feature changes the friction (the plant then takes its uniform fast path).
+    pub fn is_uniform(&self) -> bool {
+        self.features.is_empty()
+    }
+
+    /// Validates every field; `base_eps`/`base_n_f` are the uniform values the features modify.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        finite("pipe.start", self.start)?;
+        positive("pipe.resolution", self.resolution)?;
+        match (self.disclose, &self.nominal) {
+            (false, None) => {
+                return Err(ParamError::new(
+                    "pipe.nominal",
+                    "missing",
+                    "the values controllers are told when pipe.disclose = false: nominal = { eps = .., n_f = .. }",
+                ))
+            }
+            (_, Some(n)) => {
+                non_negative("pipe.nominal.eps", n.eps)?;
+                within("pipe.nominal.n_f", n.n_f, 0.0, 1.0)?;
+            }
+            (true, None) => {}
+        }
+        for (i, f) in self.features.iter().enumerate() {
+            let name = |field: &str| format!("pipe.features[{i}].{field}");
+            let (from, to) = f.range();
+            finite(&name("from"), from)?;
+            finite(&name("to"), to)?;
+            if to <= from {
+                return Err(ParamError::new(
+                    name("to"),
+                    to,
+                    format!("a position > from = {from} m"),
+                ));
+            }
+            match *f {
+                Feature::Patch { eps, n_f, .. } => {
+                    if let Some(e) = eps {
+                        non_negative(&name("eps"), e)?;
+                    }
+                    if let Some(n) = n_f {
+                        within(&name("n_f"), n, 0.0, 1.0)?;
+                    }
+                    if eps.is_none() && n_f.is_none() {
+                        return Err(ParamError::new(
+                            name("eps"),
+                            "missing",
+                            "eps and/or n_f for a patch",
+                        ));
+                    }
+                }
+                Feature::Ramp { eps, n_f, .. } => {
+                    if let Some([a, b]) = eps {
+                        non_negative(&name("eps[0]"), a)?;
+                        non_negative(&name("eps[1]"), b)?;
+                    }
+                    if let Some([a, b]) = n_f {
+                        within(&name("n_f[0]"), a, 0.0, 1.0)?;
+                        within(&name("n_f[1]"), b, 0.0, 1.0)?;
+                    }
+                    if eps.is_none() && n_f.is_none() {
+                        return Err(ParamError::new(
+                            name("eps"),
+                            "missing",
+                            "eps = [from, to] and/or n_f = [from, to] for a ramp",
+                        ));
+                    }
+                }
+                Feature::Texture {
+                    eps_std,
+                    n_f_std,
+                    correlation,
+                    ..
+                } => {
+                    non_negative(&name("eps_std"), eps_std)?;
+                    non_negative(&name("n_f_std"), n_f_std)?;
+                    positive(&name("correlation"), correlation)?;
+                    let samples = (to - from) / (correlation / 8.0);
+                    if samples > MAX_PIECES as f64 {
+                        return Err(ParamError::new(
+                            name("correlation"),
+                            correlation,
+                            format!(
+                                "at least (to - from) * 8 / {MAX_PIECES} m (the texture is sampled every correlation / 8)"
+                            ),
+                        ));
+                    }
+                }
+            }
+            if matches!(f, Feature::Ramp { .. } | Feature::Texture { .. })
+                && (to - from) / self.resolution > MAX_PIECES as f64
+            {
+                return Err(ParamError::new(
+                    "pipe.resolution",
+                    self.resolution,
+                    format!(
+                        "at least {:.3e} m so that features[{i}] has at most {MAX_PIECES} pieces",
+                        (to - from) / MAX_PIECES as f64
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Compiles the map for the uniform values `eps`, `n_f` (validate first).
+    pub fn compile(&self, eps: f64, n_f: f64) -> FrictionMap {
+        let textures: Vec<Option<TextureSamples>> = self
+            .features
+            .iter()
+            .map(|f| match *f {
+                Feature::Texture {
+                    from,
+                    to,
+                    eps_std,
+                    n_f_std,
+                    correlation,
+                    seed,
+                } => Some(TextureSamples::new(
+                    from,
+                    to,
+                    eps_std,
+                    n_f_std,
+                    correlation,
+                    seed,
+                )),
+                _ => None,
+            })
+            .collect();
+        // Edges: every feature's ends; inside ramps and textures, every `resolution`.
+        let mut edges = Vec::new();
+        for f in &self.features {
+            let (from, to) = f.range();
+            edges.push(from);
+            edges.push(to);
+            if !matches!(f, Feature::Patch { .. }) {
+                let n = ((to - from) / self.resolution).ceil() as usize;
+                edges.extend((1..n).map(|j| from + j as f64 * self.resolution));
+            }
+        }
+        edges.sort_by(f64::total_cmp);
+        edges.dedup();
+        let value_at = |x: f64| -> (f64, f64) {
+            let (mut e, mut n) = (eps, n_f);
+            for (f, tex) in self.features.iter().zip(&textures) {
+                let (from, to) = f.range();
+                if !(from..to).contains(&x) {
+                    continue;
+                }
+                match *f {
+                    Feature::Patch {
+                        eps: pe, n_f: pn, ..
+                    } => {
+                        e = pe.unwrap_or(e);
+                        n = pn.unwrap_or(n);
+                    }
+                    Feature::Ramp {
+                        eps: re, n_f: rn, ..
+                    } => {
+                        let w = (x - from) / (to - from);
+                        if let Some([a, b]) = re {
+                            e = a + w * (b - a);
+                        }
+                        if let Some([a, b]) = rn {
+                            n = a + w * (b - a);
+                        }
+                    }
+                    Feature::Texture { .. } => {
+                        let t = tex.as_ref().expect("texture samples");
+                        let (de, dn) = t.at(x);
+                        e += de;
+                        n += dn;
+                    }
+                }
+                e = e.max(0.0);
+                n = n.clamp(0.0, 1.0);
+            }
+            (e, n)
+        };
+        let mut pieces: Vec<Piece> = Vec::with_capacity(edges.len());
+        for w in edges.windows(2) {
+            let (e, n) = value_at(0.5 * (w[0] + w[1]));
+            match pieces.last() {
+                Some(last) if last.eps == e && last.n_f == n => {}
+                _ => pieces.push(Piece {
+                    start: w[0],
+                    eps: e,
+                    n_f: n,
+                }),
+            }
+        }
+        // Beyond the last edge the uniform values hold again.
+        if let Some(&end) = edges.last() {
+            if pieces.last().is_some_and(|p| (p.eps, p.n_f) != (eps, n_f)) {
+                pieces.push(Piece {
+                    start: end,
+                    eps,
+                    n_f,
+                });
+            }
+        }
+        // A first piece equal to the uniform values is redundant.
+        while pieces.first().is_some_and(|p| (p.eps, p.n_f) == (eps, n_f)) {
+            pieces.remove(0);
+        }
+        FrictionMap { eps, n_f, pieces }
+    }
+}
+
+/// A texture's Ornstein–Uhlenbeck samples.
+struct TextureSamples {
+    from: f64,
+    spacing: f64,
+    eps: Vec<f64>,
+    n_f: Vec<f64>,
+}
+
+impl TextureSamples {
+    fn new(from: f64, to: f64, eps_std: f64, n_f_std: f64, correlation: f64, seed: u64) -> Self {
+        let spacing = correlation / 8.0;
+        let n = ((to - from) / spacing).ceil() as usize + 1;
+        let rho = (-spacing / correlation).exp();
+        let kick = (1.0 - rho * rho).sqrt();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut process = |std: f64| -> Vec<f64> {
+            let mut g: f64 = StandardNormal.sample(&mut rng);
+            (0..n)
+                .map(|j| {
+                    if j > 0 {
+                        let xi: f64 = StandardNormal.sample(&mut rng);
+                        g = rho * g + kick * xi;
+                    }
+                    std * g
+                })
+                .collect()
+        };
+        let eps = process(eps_std);
+        let n_f = process(n_f_std);
+        Self {
+            from,
+            spacing,
+            eps,
+            n_f,
+        }
+    }
+
+    fn at(&self, x: f64) -> (f64, f64) {
+        let s = ((x - self.from) / self.spacing).max(0.0);
+        let j = (s.floor() as usize).min(self.eps.len() - 2);
+        let w = s - j as f64;
+        (
+            self.eps[j] + w * (self.eps[j + 1] - self.eps[j]),
+            self.n_f[j] + w * (self.n_f[j + 1] - self.n_f[j]),
+        )
+    }
+}
+
+/// A constant piece of the map, from `start` to the next piece's start.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Piece {
+    /// World position where the piece starts, m.
+    pub start: f64,
+    /// Dry friction coefficient on the piece.
+    pub eps: f64,
+    /// Asymmetry on the piece.
+    pub n_f: f64,
+}
+
+/// The compiled map: uniform values, overridden on `[pieces[j].start, pieces[j+1].start)`; the
+/// last piece extends to `+inf` and the uniform values hold before the first.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrictionMap {
+    /// Uniform `eps` (before the first piece).
+    pub eps: f64,
+    /// Uniform `n_F`.
+    pub n_f: f64,
+    /// The pieces, sorted by start.
+    pub pieces: Vec<Piece>,
+}
+
+/// Where a position lies in a [`FrictionMap`]: `index` 0 is before the first piece, `j + 1` is piece `j`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    /// Interval index.
+    pub index: usize,
+    /// Start of the interval (`-inf` for index 0), m.
+    pub lo: f64,
+    /// End of the interval (`+inf` for the last), m.
+    pub hi: f64,
+    /// `eps` on it.
+    pub eps: f64,
+    /// `n_F` on it.
+    pub n_f: f64,
+}
+
+impl FrictionMap {
+    /// True if the map has no pieces (friction is uniform).
+    pub fn is_uniform(&self) -> bool {
+        self.pieces.is_empty()
+    }
+
+    /// The interval holding `x`, found by binary search.
+    pub fn locate(&self, x: f64) -> Located {
+        let index = self.pieces.partition_point(|p| p.start <= x);
+        self.interval(index)
+    }
+
+    /// Interval `index` (0 = before the first piece).
+    pub fn interval(&self, index: usize) -> Located {
+        let lo = if index == 0 {
+            f64::NEG_INFINITY
+        } else {
+            self.pieces[index - 1].start
+        };
+        let hi = self.pieces.get(index).map_or(f64::INFINITY, |p| p.start);
+        let (eps, n_f) = if index == 0 {
+            (self.eps, self.n_f)
+        } else {
+            let p = &self.pieces[index - 1];
+            (p.eps, p.n_f)
+        };
+        Located {
+            index,
+            lo,
+            hi,
+            eps,
+            n_f,
+        }
+    }
+
+    /// `(eps, n_F)` at world position `x`.
+    pub fn at(&self, x: f64) -> (f64, f64) {
+        let l = self.locate(x);
+        (l.eps, l.n_f)
+    }
+
+    /// The smallest and largest `eps` and `n_F` anywhere in the pipe.
+    pub fn ranges(&self) -> ([f64; 2], [f64; 2]) {
+        let mut e = [self.eps, self.eps];
+        let mut n = [self.n_f, self.n_f];
+        for p in &self.pieces {
+            e = [e[0].min(p.eps), e[1].max(p.eps)];
+            n = [n[0].min(p.n_f), n[1].max(p.n_f)];
+        }
+        (e, n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn patch(from: f64, to: f64, eps: f64) -> Feature {
+        Feature::Patch {
+            from,
+            to,
+            eps: Some(eps),
+            n_f: None,
+        }
+    }
+
+    #[test]
+    fn patches_are_exact_and_later_features_win() {
+        let pipe = Pipe {
+            features: vec![patch(1.0, 2.0, 0.8), patch(1.5, 3.0, 0.3)],
+            ..Default::default()
+        };
+        pipe.validate().unwrap();
+        let m = pipe.compile(0.1, 0.5);
+        assert_eq!(m.at(0.999_999), (0.1, 0.5));
+        assert_eq!(m.at(1.0), (0.8, 0.5));
+        assert_eq!(m.at(1.499_999), (0.8, 0.5));
+        assert_eq!(m.at(1.5), (0.3, 0.5));
+        assert_eq!(m.at(2.999_999), (0.3, 0.5));
+        assert_eq!(m.at(3.0), (0.1, 0.5));
+        assert_eq!(m.at(100.0), (0.1, 0.5));
+        assert_eq!(m.pieces.len(), 3);
+    }
+
+    #[test]
+    fn ramps_are_held_at_their_midpoints() {
+        let pipe = Pipe {
+            resolution: 0.1,
+            features: vec![Feature::Ramp {
+                from: 0.0,
+                to: 1.0,
+                eps: Some([0.0, 1.0]),
+                n_f: Some([0.5, 0.7]),
+            }],
+            ..Default::default()
+        };
+        pipe.validate().unwrap();
+        let m = pipe.compile(0.3, 0.5);
+        for j in 0..10 {
+            let x = 0.1 * j as f64 + 0.03;
+            let mid = 0.1 * j as f64 + 0.05;
+            let (e, n) = m.at(x);
+            assert!((e - mid).abs() < 1e-12, "{x}: {e}");
+            assert!((n - (0.5 + 0.2 * mid)).abs() < 1e-12);
+        }
+        assert_eq!(m.at(1.0), (0.3, 0.5));
+        assert_eq!(m.at(-0.01), (0.3, 0.5));
+    }
+
+    #[test]
+    fn textures_are_reproducible_zero_mean_and_correlated() {
+        let tex = |seed| Pipe {
+            resolution: 0.01,
+            features: vec![Feature::Texture {
+                from: 0.0,
+                to: 200.0,
+                eps_std: 0.05,
+                n_f_std: 0.0,
+                correlation: 0.5,
+                seed,
+            }],
+            ..Default::default()
+        };
+        let a = tex(7).compile(0.5, 0.5);
+        assert_eq!(a, tex(7).compile(0.5, 0.5), "same seed, same map");
+        assert_ne!(a, tex(8).compile(0.5, 0.5), "another seed, another map");
+        let xs: Vec<f64> = (0..20_000).map(|j| 0.01 * j as f64 + 0.005).collect();
+        let e: Vec<f64> = xs.iter().map(|&x| a.at(x).0 - 0.5).collect();
+        let mean = e.iter().sum::<f64>() / e.len() as f64;
+        let var = e.iter().map(|d| d * d).sum::<f64>() / e.len() as f64;
+        // 400 correlation lengths: the sample mean's standard error is about 0.05 / 14.
+        assert!(mean.abs() < 0.012, "mean {mean}");
+        assert!((var.sqrt() - 0.05).abs() < 0.01, "std {}", var.sqrt());
+        // Correlation at one correlation length: exp(-1) for the OU process (interpolation
+        // smooths it slightly).
+        let lag = 50;
+        let c =
+            e.iter().zip(&e[lag..]).map(|(a, b)| a * b).sum::<f64>() / (e.len() - lag) as f64 / var;
+        assert!((c - (-1.0f64).exp()).abs() < 0.1, "correlation {c}");
+        assert!(a.pieces.iter().all(|p| p.n_f == 0.5));
+    }
+
+    #[test]
+    fn values_are_clipped_and_bad_fields_named() {
+        let pipe = Pipe {
+            features: vec![Feature::Ramp {
+                from: 0.0,
+                to: 1.0,
+                eps: None,
+                n_f: Some([0.9, 1.0]),
+            }],
+            ..Default::default()
+        };
+        assert!(pipe.validate().is_ok());
+        let bad = Pipe {
+            features: vec![patch(2.0, 1.0, 0.3)],
+            ..Default::default()
+        };
+        let e = bad.validate().unwrap_err();
+        assert_eq!(e.field, "pipe.features[0].to");
+        let hidden = Pipe {
+            disclose: false,
+            ..Default::default()
+        };
+        assert_eq!(hidden.validate().unwrap_err().field, "pipe.nominal");
+    }
+}
