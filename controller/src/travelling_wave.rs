@@ -39,7 +39,7 @@ impl Default for TravellingWaveModel {
     fn default() -> Self {
         Self {
             steps: 1024,
-            min_stick_periods: 0.02,
+            min_stick_periods: 0.005,
         }
     }
 }
@@ -64,7 +64,8 @@ struct Sweep {
     sum_w: f64,
     sum_s: f64,
     sum_w_cos: f64,
-    stuck: usize,
+    /// Steps spent stuck, fractions of the steps in which a stick phase began or ended included.
+    stuck: f64,
     max_tension_y: f64,
     min_w: f64,
     max_w: f64,
@@ -137,9 +138,21 @@ impl TravellingWaveModel {
         let cv = op.friction.viscous;
         let ae = op.body.stiffness();
         let w_wave = op.wave;
-        let min_run = (self.min_stick_periods * self.steps as f64).ceil().max(1.0) as usize;
-        let mut run = 0usize;
-        let mut first_run: Option<usize> = None;
+        let min_run = self.min_stick_periods * self.steps as f64;
+        // Current stick phase's length in steps, and that of the phase the period began in.
+        let mut run = 0.0f64;
+        let mut first_run: Option<f64> = None;
+        // The friction selection a point at rest needs, `f0 k cos xi / (eps c_d) + n_F`: a stick
+        // phase begins or ends where it crosses +-1 (used to time the switch inside its step).
+        let band_f = op.friction.band();
+        let held = |cos_xi: f64| {
+            if band_f > 0.0 {
+                w_wave.f0 * w_wave.k * cos_xi / band_f + op.friction.n_f
+            } else {
+                f64::INFINITY
+            }
+        };
+        let mut held_prev = held(1.0);
         let mut ended_first_slide = false;
         for j in 1..=self.steps {
             // rotate to xi_j = dir * j * h (resynchronise now and then to bound round-off)
@@ -155,6 +168,9 @@ impl TravellingWaveModel {
             let wp = s.p * c + s.q * sn;
             // `dir` is the direction of sliding (+1 / -1), or 0 at rest; it only changes at a
             // crossing located inside a step or when the implicit stick rule releases the point.
+            let held_now = held(c);
+            // Share of this step in which the point was at rest (set below).
+            let mut rest_share = 0.0;
             let (w, z_next, s_mean, stuck) = if dir != 0.0 && s.e > 0.0 {
                 // Sliding: the exact step for constant s is z <- z E + z*(s) (1 - E).
                 let z_new = z * s.e + if dir > 0.0 { s.c_plus } else { s.c_minus };
@@ -175,6 +191,9 @@ impl TravellingWaveModel {
                     let sel = select(b, g_rest);
                     // the end state no longer depends on z0 through this step (it restarted at w = 0)
                     out.slope = 0.0;
+                    if sel.stuck {
+                        rest_share = 1.0 - theta;
+                    }
                     (
                         sel.velocity,
                         sel.velocity - wp,
@@ -187,11 +206,32 @@ impl TravellingWaveModel {
                 let b = wp + s.e * z + s.push;
                 let sel = select_with_inverse(b, s.g, s.inv_g);
                 out.slope = if sel.stuck { 0.0 } else { out.slope * s.e };
+                // A switch inside the step: where the held selection crosses the band edge.
+                let was_at_rest = dir == 0.0;
+                let edge_share = || {
+                    let edge = if held_now.abs() > 1.0 {
+                        held_now.signum()
+                    } else {
+                        held_prev.signum()
+                    };
+                    if held_now == held_prev {
+                        0.5
+                    } else {
+                        ((edge - held_prev) / (held_now - held_prev)).clamp(0.0, 1.0)
+                    }
+                };
+                rest_share = match (was_at_rest, sel.stuck) {
+                    (true, true) => 1.0,
+                    (true, false) => edge_share(),
+                    (false, true) => 1.0 - edge_share(),
+                    (false, false) => 0.0,
+                };
                 (sel.velocity, sel.velocity - wp, sel.s, sel.stuck)
             };
             dir = if stuck || w == 0.0 { 0.0 } else { w.signum() };
             z = z_next;
             wp_prev = wp;
+            held_prev = held_now;
             if !FULL {
                 continue;
             }
@@ -200,11 +240,10 @@ impl TravellingWaveModel {
             out.max_w = out.max_w.max(w);
             out.sum_s += s_mean;
             out.sum_w_cos += w * c;
-            if stuck {
-                out.stuck += 1;
-                run += 1;
-            } else {
-                if run > 0 {
+            out.stuck += rest_share;
+            run += rest_share;
+            if !stuck {
+                if run > 0.0 {
                     if ended_first_slide {
                         if run >= min_run {
                             out.episodes += 1;
@@ -214,7 +253,7 @@ impl TravellingWaveModel {
                     }
                 }
                 ended_first_slide = true;
-                run = 0;
+                run = 0.0;
             }
             // tension without the V term: T = A_c E k y + f0 sin xi with y = (V - w) / omega
             let tension_wo_v = -ae * w_wave.k * w / w_wave.omega + w_wave.f0 * sn;
@@ -226,10 +265,10 @@ impl TravellingWaveModel {
             }
         }
         // A stick run that wraps around the period boundary counts once.
-        let wrap = run + first_run.unwrap_or(0);
-        if run > 0 && !ended_first_slide {
+        let wrap = run + first_run.unwrap_or(0.0);
+        if run > 0.0 && !ended_first_slide {
             // stuck for the whole period: no episode ends
-        } else if wrap >= min_run && (run > 0 || first_run.is_some()) {
+        } else if wrap >= min_run && (run > 0.0 || first_run.is_some()) {
             out.episodes += 1;
         }
         out.end_z = z;
@@ -399,7 +438,7 @@ impl Model for TravellingWaveModel {
             mileage: Some(velocity.abs() / power),
             max_stress: Some(stress),
             max_strain: Some(strain),
-            stuck_fraction: Some(sw.stuck as f64 / m),
+            stuck_fraction: Some(sw.stuck / m),
             mean_friction_selection: Some(sw.sum_s / m),
             episodes_per_node_per_period: Some(sw.episodes as f64),
             validity: Validity::Valid,

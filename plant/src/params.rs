@@ -96,6 +96,20 @@ pub struct Numerics {
     pub min_stick: f64,
     /// Averaging block when the actuation is a general field (no forcing period), s.
     pub block: f64,
+    /// Strength of the grid filter per internal step, in [0, 1): the share of the grid-scale
+    /// (Nyquist) mode of the sliding nodes' velocity removed each step by a conservative
+    /// fourth-difference filter. At Courant number 1 the scheme's two interleaved sub-lattices
+    /// do not exchange information and their difference, the Nyquist mode, is not damped by the
+    /// centred viscous term; friction switching feeds it. 0 turns the filter off.
+    #[serde(default = "default_filter")]
+    pub filter: f64,
+}
+
+/// Default strength of the grid filter (see [`Numerics::filter`] and `docs/numerics.md`).
+pub const DEFAULT_FILTER: f64 = 0.1;
+
+fn default_filter() -> f64 {
+    DEFAULT_FILTER
 }
 
 impl Numerics {
@@ -119,6 +133,13 @@ impl Numerics {
         non_negative("numerics.settle", self.settle)?;
         non_negative("numerics.min_stick", self.min_stick)?;
         positive("numerics.block", self.block)?;
+        if !(self.filter.is_finite() && (0.0..1.0).contains(&self.filter)) {
+            return Err(ParamError::new(
+                "numerics.filter",
+                self.filter,
+                "0 <= filter < 1 (share of the grid-scale mode removed per step)",
+            ));
+        }
         Ok(())
     }
 }

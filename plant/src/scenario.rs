@@ -97,6 +97,7 @@ struct RawNumerics {
     t_end: f64,
     settle: f64,
     block: Option<f64>,
+    filter: f64,
 }
 
 impl Default for RawNumerics {
@@ -108,6 +109,7 @@ impl Default for RawNumerics {
             t_end: 10.0,
             settle: 5.0,
             block: None,
+            filter: crate::params::DEFAULT_FILTER,
         }
     }
 }
@@ -417,6 +419,7 @@ impl RawScenario {
             settle: self.numerics.settle,
             min_stick: min_stick_periods * wave.period(),
             block,
+            filter: self.numerics.filter,
         };
         let plant = PlantParams {
             body,

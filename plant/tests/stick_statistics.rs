@@ -122,25 +122,19 @@ fn where_the_velocity_only_reverses_there_are_no_stick_phases() {
 
 #[test]
 fn long_stick_phases_match_the_travelling_wave_solution() {
-    // The stick-slip scenario's point: one long stick phase per node and period (43 %). Here the
-    // time stepping's release and stop decisions (whole steps) make V converge at first order in
-    // dt: the error halves with the step.
-    let errors: Vec<f64> = [1024, 2048]
+    // The stick-slip scenario's point: one long stick phase per node and period (43 %). Without
+    // the grid filter the scheme's two sub-lattices drift apart here and V converged at first
+    // order (1 % off at 256 cells); with it, V converges at second order.
+    let errors: Vec<f64> = [256, 512, 1024]
         .iter()
         .map(|&cells| {
             let s = custom(1.0, 0.2, TAU, 0.5, 1.0, cells, 10.0, "");
-            let (r, exact) = compare(
-                &format!("stick-slip point, {cells} cells"),
-                &s,
-                0.01,
-                0.006 * 1024.0 / cells as f64,
-            );
+            let (r, exact) = compare(&format!("stick-slip point, {cells} cells"), &s, 0.01, 2e-3);
             rel(r.velocity, exact.velocity)
         })
         .collect();
-    let order = (errors[0] / errors[1]).log2();
     assert!(
-        (0.8..1.3).contains(&order),
-        "V's error {errors:?}: observed order {order}, expected first order"
+        errors[1] < 1e-4 && errors[2] < 1e-5,
+        "V's relative errors {errors:?}"
     );
 }
