@@ -73,7 +73,7 @@ fn one_malloc_arena() {
 
 fn main() -> ExitCode {
     one_malloc_arena();
-    crawler_transport::ensure_cpu_features();
+    crawler_cli::cpu::ensure_cpu_features();
     let Command::Record(a) = Cli::parse().command;
     match record(a) {
         Ok(code) => code,

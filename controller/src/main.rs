@@ -5,12 +5,12 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use serde_json::json;
 
+use crawler_cli::ScenarioArgs;
 use crawler_controller::optimizer::{BodyLength, GridSpec, ModelChoice, Problem};
 use crawler_controller::paper_model::{PaperModel, PaperTerms};
 use crawler_controller::policies::REGISTRY;
 use crawler_controller::verify;
 use crawler_controller::OperatingPoint;
-use crawler_plant::scenario_args::ScenarioArgs;
 
 #[derive(Parser)]
 #[command(
@@ -165,7 +165,7 @@ struct OptimizeArgs {
 }
 
 fn main() -> ExitCode {
-    crawler_transport::ensure_cpu_features();
+    crawler_cli::cpu::ensure_cpu_features();
     let cli = Cli::parse();
     if let Command::Run(a) = cli.command {
         return match run_client(a) {

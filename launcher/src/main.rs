@@ -105,7 +105,8 @@ fn binaries() -> anyhow::Result<PathBuf> {
     if profile_release {
         cmd.arg("--release");
     }
-    for p in ["crawler-plant", "crawler-controller", "crawler-bridge"] {
+    // The packages of BINARIES.
+    for p in ["crawler-plant-node", "crawler-controller", "crawler-bridge"] {
         cmd.args(["-p", p]);
     }
     let status = cmd.status()?;

@@ -23,13 +23,14 @@ use crawler_protocol::{
 };
 use crawler_transport::Network;
 
+use crawler_plant::model_description::ModelDescription;
+use crawler_plant::plant::Plant;
+use crawler_plant::scenario::Scenario;
+use crawler_plant::simulate::{report, EpisodeLog, Report};
+use crawler_plant::slave::{Slave, StepStatus};
+use crawler_plant::wave::Wave;
+
 use crate::checkpoint::Checkpoint;
-use crate::model_description::ModelDescription;
-use crate::plant::Plant;
-use crate::scenario::Scenario;
-use crate::simulate::{progress_bar, report, EpisodeLog, Report};
-use crate::slave::{Slave, StepStatus};
-use crate::wave::Wave;
 
 /// Capacity of the actuation inbox; beyond it messages are dropped and counted (flooding).
 const INBOX: usize = 1024;
@@ -134,7 +135,7 @@ pub fn classify(
     joined: &str,
     cells: usize,
     length: f64,
-    boundary: crate::params::Boundary,
+    boundary: crawler_plant::params::Boundary,
 ) -> Result<Actuation, (Reject, String)> {
     let a: Actuation = decode(bytes).map_err(|e| match e {
         ProtocolError::Version { .. } => (Reject::Version, e.to_string()),
@@ -604,7 +605,7 @@ impl Runner {
         let first = self.plant().macro_step();
         let started = Instant::now();
         let mut state_bytes;
-        let bar = progress_bar(self.last_step, "co-simulating");
+        let bar = crawler_cli::progress::bar(self.last_step, "co-simulating");
         bar.set_position(first);
         link.status(
             "running",

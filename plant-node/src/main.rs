@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use crawler_plant::scenario_args::ScenarioArgs;
+use crawler_cli::ScenarioArgs;
 use crawler_plant::simulate::{simulate, SimulateOptions};
 
 #[derive(Parser)]
@@ -89,7 +89,7 @@ struct DescribeArgs {
 }
 
 fn main() -> ExitCode {
-    crawler_transport::ensure_cpu_features();
+    crawler_cli::cpu::ensure_cpu_features();
     let cli = Cli::parse();
     match dispatch(cli) {
         Ok(code) => code,
@@ -116,8 +116,8 @@ fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
 }
 
 fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
-    use crawler_plant::checkpoint::Checkpoint;
-    use crawler_plant::cosim::{run, Control, Outcome, RunOptions};
+    use crawler_plant_node::checkpoint::Checkpoint;
+    use crawler_plant_node::cosim::{run, Control, Outcome, RunOptions};
     let resume = a.resume.as_deref().map(Checkpoint::load).transpose()?;
     let mut net_args = a.network.clone();
     if let (Some(c), None) = (&resume, &a.network.run_id) {
@@ -197,13 +197,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(_) => unreachable!("handled by dispatch"),
         Command::Simulate(a) => {
             let scenario = a.scenario.load()?;
+            let bar = crawler_cli::progress::bar(0, "simulating");
+            let mut show = |done: u64, total: u64| {
+                bar.set_length(total);
+                bar.set_position(done);
+            };
             let report = simulate(
                 &scenario,
                 SimulateOptions {
                     max_episodes: a.max_episodes,
-                    progress: true,
+                    progress: Some(&mut show),
                 },
             )?;
+            bar.finish_and_clear();
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
@@ -218,8 +224,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "invalid --seconds = {}: allowed > 0",
                 a.seconds
             );
-            let r =
-                crawler_plant::bench::bench(&scenario, scenario.plant.numerics.cells, a.seconds)?;
+            let r = crawler_plant_node::bench::bench(
+                &scenario,
+                scenario.plant.numerics.cells,
+                a.seconds,
+            )?;
             println!("{}", serde_json::to_string(&r)?);
             Ok(())
         }
