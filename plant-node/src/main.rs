@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use crawler_cli::ScenarioArgs;
+use crawler_cli::{Exit, ScenarioArgs};
 use crawler_plant::simulate::{simulate, SimulateOptions};
 
 #[derive(Parser)]
@@ -95,7 +95,7 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("crawler-plant: error: {e:#}");
-            ExitCode::FAILURE
+            Exit::Failure.into()
         }
     }
 }
@@ -104,7 +104,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     if let Command::Run(a) = cli.command {
         return cosim(a);
     }
-    run(cli).map(|()| ExitCode::SUCCESS)
+    run(cli).map(|()| Exit::Finished.into())
 }
 
 fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
@@ -117,7 +117,8 @@ fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
 
 fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
     use crawler_plant_node::checkpoint::Checkpoint;
-    use crawler_plant_node::cosim::{run, Control, Outcome, RunOptions};
+    use crawler_plant_node::link::Control;
+    use crawler_plant_node::runner::{run, Outcome, RunOptions};
     let resume = a.resume.as_deref().map(Checkpoint::load).transpose()?;
     let mut net_args = a.network.clone();
     if let (Some(c), None) = (&resume, &a.network.run_id) {
@@ -172,12 +173,12 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
             } else {
                 println!("{}", report.summary());
             }
-            Ok(ExitCode::SUCCESS)
+            Ok(Exit::Finished.into())
         }
         Outcome::Stopped {
             reason,
             checkpoint,
-            exit_code,
+            exit,
         } => {
             match checkpoint {
                 Some(c) => eprintln!(
@@ -187,7 +188,7 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
                 ),
                 None => eprintln!("crawler-plant: run stopped: {reason} (nothing simulated, no checkpoint written)"),
             }
-            Ok(ExitCode::from(exit_code))
+            Ok(exit.into())
         }
     }
 }
