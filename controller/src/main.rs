@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use serde_json::json;
 
+use crawler_cli::Exit;
 use crawler_cli::ScenarioArgs;
 use crawler_controller::optimizer::{BodyLength, GridSpec, ModelChoice, Problem};
 use crawler_controller::paper_model::{PaperModel, PaperTerms};
@@ -172,15 +173,15 @@ fn main() -> ExitCode {
             Ok(code) => code,
             Err(e) => {
                 eprintln!("crawler-controller: error: {e:#}");
-                ExitCode::FAILURE
+                Exit::Failure.into()
             }
         };
     }
     match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => Exit::Finished.into(),
         Err(e) => {
             eprintln!("crawler-controller: error: {e:#}");
-            ExitCode::FAILURE
+            Exit::Failure.into()
         }
     }
 }
@@ -246,11 +247,11 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
             } else {
                 print!("{}", summary.table());
             }
-            Ok(ExitCode::SUCCESS)
+            Ok(Exit::Finished.into())
         }
-        ClientOutcome::Ended { reason, exit_code } => {
+        ClientOutcome::Ended { reason, exit } => {
             eprintln!("crawler-controller: run ended: {reason}");
-            Ok(ExitCode::from(exit_code))
+            Ok(exit.into())
         }
     }
 }
