@@ -120,7 +120,7 @@ def main():
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=4.0, help="duration of each ping-pong")
     a = ap.parse_args()
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
                     "-p", "crawler-bridge", "-p", "crawler-transport", "--bins", "--examples"],
                    check=True, cwd=ROOT)
     pp, bare, withb, sizes = [], [], [], []

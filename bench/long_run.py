@@ -38,7 +38,7 @@ def main():
     ap.add_argument("--every", type=int, default=1)
     ap.add_argument("--keep", action="store_true")
     a = ap.parse_args()
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
                     "-p", "crawler-bridge"], check=True, cwd=ROOT)
     work = tempfile.mkdtemp(prefix="crawler-long-")
     run = f"long{os.getpid()}"

@@ -49,7 +49,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--cells", default="256,4096,65536")
     a = ap.parse_args()
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant"], check=True, cwd=ROOT)
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node"], check=True, cwd=ROOT)
     print("| N | Rust (cell updates/s) | NumPy (cell updates/s) | Rust / NumPy |")
     print("| ---: | ---: | ---: | ---: |")
     for n in [int(x) for x in a.cells.split(",")]:

@@ -11,6 +11,7 @@ use crossbeam_channel::{bounded, Sender};
 use zenoh::Wait;
 
 use crawler_bridge::{Incoming, Recorder, RecorderOptions};
+use crawler_cli::Exit;
 use crawler_protocol::{decode, ModelInfo, Role, RunKeys};
 
 #[derive(Parser)]
@@ -73,13 +74,13 @@ fn one_malloc_arena() {
 
 fn main() -> ExitCode {
     one_malloc_arena();
-    crawler_transport::ensure_cpu_features();
+    crawler_cli::cpu::ensure_cpu_features();
     let Command::Record(a) = Cli::parse().command;
     match record(a) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("crawler-bridge: error: {e:#}");
-            ExitCode::FAILURE
+            Exit::Failure.into()
         }
     }
 }
@@ -270,7 +271,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
             if last_message.elapsed().as_secs_f64() > t {
                 recorder.finish()?;
                 eprintln!("crawler-bridge: no message for {t} s; recording closed");
-                return Ok(ExitCode::from(4));
+                return Ok(Exit::Timeout.into());
             }
         }
     };
@@ -293,5 +294,5 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     );
     drop(_subs);
     let _ = session.close().wait();
-    Ok(ExitCode::SUCCESS)
+    Ok(Exit::Finished.into())
 }

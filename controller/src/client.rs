@@ -13,6 +13,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 use zenoh::Wait;
 
+use crawler_cli::Exit;
 use crawler_plant::params::{Body, Boundary, Friction};
 use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
@@ -57,8 +58,8 @@ pub enum ClientOutcome {
     Ended {
         /// Why.
         reason: String,
-        /// Suggested exit code.
-        exit_code: u8,
+        /// The process's exit code.
+        exit: Exit,
     },
 }
 
@@ -326,7 +327,7 @@ fn serve(
         if interrupt.try_recv().is_ok() {
             return Ok(ClientOutcome::Ended {
                 reason: "interrupted while waiting for the plant".into(),
-                exit_code: 130,
+                exit: Exit::Interrupted,
             });
         }
         if Instant::now() >= deadline {
@@ -335,7 +336,7 @@ fn serve(
                     "no plant answered within {:.0} s",
                     opts.wait_timeout.as_secs_f64()
                 ),
-                exit_code: 4,
+                exit: Exit::Timeout,
             });
         }
         let replies = session
@@ -418,7 +419,7 @@ fn serve(
         crossbeam_channel::select! {
             recv(interrupt) -> _ => {
                 publish_status("stopped", "interrupted", answered);
-                return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit_code: 130 });
+                return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit: Exit::Interrupted });
             }
             recv(ev_rx) -> ev => match ev {
                 Ok(Event::Up(pid))
@@ -426,7 +427,7 @@ fn serve(
                         plant_id = Some(pid);
                     }
                 Ok(Event::Down(pid)) if plant_id.as_deref() == Some(pid.as_str()) => {
-                    return Ok(ClientOutcome::Ended { reason: "the plant left the run".into(), exit_code: 3 });
+                    return Ok(ClientOutcome::Ended { reason: "the plant left the run".into(), exit: Exit::PeerLost });
                 }
                 Ok(Event::Status(st)) if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" => {
                     ignored += 1;
@@ -438,7 +439,7 @@ fn serve(
                     }
                     "failed" | "stopped" if answered > 0 || st.step > 0 => {
                         publish_status("stopped", &format!("plant {}: {}", st.state, st.message), answered);
-                        return Ok(ClientOutcome::Ended { reason: format!("the plant {}: {}", st.state, st.message), exit_code: 1 });
+                        return Ok(ClientOutcome::Ended { reason: format!("the plant {}: {}", st.state, st.message), exit: Exit::Failure });
                     }
                     _ => {}
                 },
@@ -516,7 +517,7 @@ fn serve(
                         Some(c) => format!("run {} already has controller {c}", keys.run()),
                         None => format!("no state from the plant for {:.0} s", deadline_idle.as_secs_f64()),
                     };
-                    return Ok(ClientOutcome::Ended { reason, exit_code: 4 });
+                    return Ok(ClientOutcome::Ended { reason, exit: Exit::Timeout });
                 }
             },
         }

@@ -5,12 +5,13 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use serde_json::json;
 
+use crawler_cli::Exit;
+use crawler_cli::ScenarioArgs;
 use crawler_controller::optimizer::{BodyLength, GridSpec, ModelChoice, Problem};
 use crawler_controller::paper_model::{PaperModel, PaperTerms};
 use crawler_controller::policies::REGISTRY;
 use crawler_controller::verify;
 use crawler_controller::OperatingPoint;
-use crawler_plant::scenario_args::ScenarioArgs;
 
 #[derive(Parser)]
 #[command(
@@ -165,22 +166,22 @@ struct OptimizeArgs {
 }
 
 fn main() -> ExitCode {
-    crawler_transport::ensure_cpu_features();
+    crawler_cli::cpu::ensure_cpu_features();
     let cli = Cli::parse();
     if let Command::Run(a) = cli.command {
         return match run_client(a) {
             Ok(code) => code,
             Err(e) => {
                 eprintln!("crawler-controller: error: {e:#}");
-                ExitCode::FAILURE
+                Exit::Failure.into()
             }
         };
     }
     match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => Exit::Finished.into(),
         Err(e) => {
             eprintln!("crawler-controller: error: {e:#}");
-            ExitCode::FAILURE
+            Exit::Failure.into()
         }
     }
 }
@@ -246,11 +247,11 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
             } else {
                 print!("{}", summary.table());
             }
-            Ok(ExitCode::SUCCESS)
+            Ok(Exit::Finished.into())
         }
-        ClientOutcome::Ended { reason, exit_code } => {
+        ClientOutcome::Ended { reason, exit } => {
             eprintln!("crawler-controller: run ended: {reason}");
-            Ok(ExitCode::from(exit_code))
+            Ok(exit.into())
         }
     }
 }

@@ -13,6 +13,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
+use crawler_cli::Exit;
 
 #[derive(Parser)]
 #[command(
@@ -69,7 +70,7 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("crawler: error: {e:#}");
-            ExitCode::FAILURE
+            Exit::Failure.into()
         }
     }
 }
@@ -105,7 +106,8 @@ fn binaries() -> anyhow::Result<PathBuf> {
     if profile_release {
         cmd.arg("--release");
     }
-    for p in ["crawler-plant", "crawler-controller", "crawler-bridge"] {
+    // The packages of BINARIES.
+    for p in ["crawler-plant-node", "crawler-controller", "crawler-bridge"] {
         cmd.args(["-p", p]);
     }
     let status = cmd.status()?;
@@ -225,8 +227,8 @@ impl Proc {
 /// The name and exit code of the first process that ended with a failure, if any.
 fn first_failure(procs: &mut [&mut Proc]) -> Option<(&'static str, Option<i32>)> {
     procs.iter_mut().find_map(|p| match p.ended() {
-        Some(Some(0)) | None => None,
-        Some(code) => Some((p.name, code)),
+        Some(code) if !Exit::Finished.is(code) => Some((p.name, code)),
+        _ => None,
     })
 }
 
@@ -243,7 +245,7 @@ fn stop_all(failed: (&'static str, Option<i32>), procs: &mut [&mut Proc]) -> Exi
     for p in procs.iter_mut() {
         let _ = p.finish(Duration::from_secs(10));
     }
-    ExitCode::FAILURE
+    Exit::Failure.into()
 }
 
 /// After Ctrl-C: asks every running process to stop (they finish cleanly: the plant writes its
@@ -261,8 +263,7 @@ fn stop_interrupted(procs: &mut [&mut Proc]) -> ExitCode {
             println!("{}", out.trim_end());
         }
     }
-    // 128 + SIGINT, as a shell reports a process ended by Ctrl-C
-    ExitCode::from(130)
+    Exit::Interrupted.into()
 }
 
 fn interrupt(child: &Child) {
@@ -386,8 +387,10 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     println!();
     println!("{}", ctl_out.trim_end());
     println!();
-    let ok = plant_code == Some(0) && ctl_code == Some(0) && bridge_code == Some(0);
-    if bridge_code == Some(0) {
+    let ok = [plant_code, ctl_code, bridge_code]
+        .into_iter()
+        .all(|c| Exit::Finished.is(c));
+    if Exit::Finished.is(bridge_code) {
         println!(
             "recording: {} (open it with: rerun {})",
             a.out.display(),
@@ -395,9 +398,9 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         );
     }
     if ok {
-        Ok(ExitCode::SUCCESS)
+        Ok(Exit::Finished.into())
     } else {
         eprintln!("crawler: exit codes: plant {plant_code:?}, controller {ctl_code:?}, bridge {bridge_code:?}");
-        Ok(ExitCode::FAILURE)
+        Ok(Exit::Failure.into())
     }
 }

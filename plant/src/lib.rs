@@ -10,12 +10,16 @@
 //! - [`plant`]: the plant advanced in communication steps, with actuation, metrics and events.
 //! - [`slave`]: the FMI-style lifecycle, value references and state serialization.
 //! - [`scenario`]: TOML scenarios; [`simulate`]: an in-process run under a fixed wave.
+//! - [`framing`]: the framed, checksummed binary format of serialised states.
+//! - [`cpu`]: whether this CPU runs the instructions the build targets (an answer, never an exit).
 //!
 //! Units are SI throughout: m, s, N, Pa, W, J.
+//!
+//! The library knows no network, command line or terminal: it never prints, draws or exits, so
+//! it can be linked into another program (an FMU, a controller). The co-simulation node and the
+//! `crawler-plant` program are the crate `crawler-plant-node` (`plant-node/`).
 
-pub mod bench;
-pub mod checkpoint;
-pub mod cosim;
+pub mod cpu;
 pub mod error;
 pub mod events;
 pub mod framing;
@@ -26,7 +30,6 @@ pub mod params;
 pub mod pipe;
 pub mod plant;
 pub mod scenario;
-pub mod scenario_args;
 pub mod simd;
 pub mod simulate;
 pub mod slave;

@@ -8,21 +8,33 @@ use crate::plant::{Drive, Plant};
 use crate::scenario::Scenario;
 use crate::slave::{Slave, SlaveError, StepStatus};
 
+/// Told how far a run got: `(communication steps done, communication steps in the run)`.
+pub type Progress<'a> = &'a mut dyn FnMut(u64, u64);
+
 /// Options of an in-process run.
-#[derive(Debug, Clone, Copy)]
-pub struct SimulateOptions {
+pub struct SimulateOptions<'a> {
     /// Largest number of episodes listed in the report (all are counted).
     pub max_episodes: usize,
-    /// Show a progress bar on stderr (hidden anyway when stderr is not a terminal).
-    pub progress: bool,
+    /// Called every 256 communication steps and once at the end (a program draws its progress
+    /// bar from it; the library draws nothing).
+    pub progress: Option<Progress<'a>>,
 }
 
-impl Default for SimulateOptions {
+impl Default for SimulateOptions<'_> {
     fn default() -> Self {
         Self {
             max_episodes: 10_000,
-            progress: false,
+            progress: None,
         }
+    }
+}
+
+impl std::fmt::Debug for SimulateOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimulateOptions")
+            .field("max_episodes", &self.max_episodes)
+            .field("progress", &self.progress.is_some())
+            .finish()
     }
 }
 
@@ -322,7 +334,7 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
 }
 
 /// Runs the scenario's plant under its wave from t = 0 to `t_end` (rounded to whole steps).
-pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, SimulateError> {
+pub fn simulate(scenario: &Scenario, mut opts: SimulateOptions) -> Result<Report, SimulateError> {
     let mut slave = Slave::instantiate("simulate", scenario.plant.clone())?;
     slave.enter_initialization_mode(0.0, None)?;
     slave.set_wave(scenario.wave)?;
@@ -330,7 +342,6 @@ pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, Si
     let disc = scenario.plant.discretisation().map_err(SlaveError::from)?;
     let h = disc.step;
     let steps = disc.steps_until(scenario.t_end);
-    let bar = opts.progress.then(|| progress_bar(steps, "simulating"));
     let mut log = EpisodeLog::new(opts.max_episodes);
     for n in 0..steps {
         match slave.do_step(n as f64 * h, h) {
@@ -347,32 +358,16 @@ pub fn simulate(scenario: &Scenario, opts: SimulateOptions) -> Result<Report, Si
             StepStatus::Error(e) => return Err(e.into()),
         }
         log.observe(slave.plant());
-        if let Some(b) = &bar {
-            if n % 256 == 0 {
-                b.set_position(n);
+        if n % 256 == 0 {
+            if let Some(progress) = opts.progress.as_mut() {
+                progress(n + 1, steps);
             }
         }
     }
-    if let Some(b) = bar {
-        b.finish_and_clear();
+    if let Some(progress) = opts.progress.as_mut() {
+        progress(steps, steps);
     }
     report(&scenario.name, slave.plant(), &log)
-}
-
-/// A progress bar on stderr (drawn only when stderr is a terminal).
-pub fn progress_bar(total: u64, what: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::with_draw_target(
-        Some(total),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(&format!(
-            "{{spinner}} {what} [{{bar:40}}] {{pos}}/{{len}} steps ({{eta}})"
-        ))
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    bar
 }
 
 impl Report {

@@ -1,5 +1,6 @@
-//! Property-based fuzzing of the scenario parser: arbitrary text and mutations of the paper
-//! scenario never panic, and whatever parses is a fully valid scenario.
+//! Property-based fuzzing of the scenario parser and of serialised plant states: arbitrary text
+//! and mutations of the paper scenario never panic, and whatever parses is a fully valid
+//! scenario; mutated or truncated states are refused or restored, never a panic.
 
 use proptest::prelude::*;
 
@@ -48,49 +49,34 @@ proptest! {
     }
 }
 
-mod checkpoints {
+mod states {
     use super::*;
-    use crawler_plant::checkpoint::Checkpoint;
     use crawler_plant::plant::Plant;
-    use crawler_plant::simulate::EpisodeLog;
     use crawler_plant::slave::Slave;
 
-    fn sample() -> (Vec<u8>, Vec<u8>) {
+    fn sample() -> crawler_plant::plant::PlantState {
         let s = Scenario::paper();
         let mut plant = Plant::new(s.plant.clone(), 0.0).unwrap();
         plant.set_wave(s.wave).unwrap();
         for _ in 0..20 {
             plant.advance().unwrap();
         }
-        let ckpt = Checkpoint {
-            run_id: "fuzz".into(),
-            scenario: s.clone(),
-            last_step: 100,
-            state: plant.state(),
-            log: EpisodeLog::new(10),
-            rejections: Default::default(),
-            reason: "test".into(),
-        };
-        (ckpt.to_bytes(), Slave::serialize_state(&plant.state()))
+        plant.state()
     }
 
     #[test]
-    fn a_checkpoint_round_trips() {
-        let (c, s) = sample();
-        assert!(Checkpoint::from_bytes(&c).is_ok());
-        assert!(Slave::deserialize_state(&s).is_ok());
+    fn a_state_round_trips() {
+        let state = sample();
+        let bytes = Slave::serialize_state(&state);
+        assert_eq!(Slave::deserialize_state(&bytes).unwrap(), state);
     }
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 600, ..ProptestConfig::default() })]
 
         #[test]
-        fn mutated_checkpoints_and_states_never_panic(at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<prop::sample::Index>()) {
-            let (mut c, mut s) = sample();
-            let i = at.index(c.len());
-            c[i] ^= byte | 1;
-            let _ = Checkpoint::from_bytes(&c);
-            let _ = Checkpoint::from_bytes(&c[..cut.index(c.len())]);
+        fn mutated_states_never_panic(at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<prop::sample::Index>()) {
+            let mut s = Slave::serialize_state(&sample());
             let j = at.index(s.len());
             s[j] ^= byte | 1;
             if let Ok(state) = Slave::deserialize_state(&s) {

@@ -209,18 +209,6 @@ pub fn process_id() -> String {
     format!("{:016x}", h.finish())
 }
 
-/// Exits with a clear message if this CPU lacks the instructions the build targets.
-pub fn ensure_cpu_features() {
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-    if !std::arch::is_x86_feature_detected!("avx2") || !std::arch::is_x86_feature_detected!("fma") {
-        eprintln!(
-            "error: this build targets x86-64-v3 (AVX2) but the CPU lacks it; \
-             rebuild without .cargo/config.toml's target-cpu setting"
-        );
-        std::process::exit(2);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

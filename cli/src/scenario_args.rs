@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crate::scenario::{Overrides, Scenario, ScenarioError};
+use crawler_plant::scenario::{Overrides, Scenario, ScenarioError};
 
 /// Scenario file and the common overrides.
 #[derive(Args, Debug, Clone, Default)]

@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use crawler_plant::scenario_args::ScenarioArgs;
+use crawler_cli::{Exit, ScenarioArgs};
 use crawler_plant::simulate::{simulate, SimulateOptions};
 
 #[derive(Parser)]
@@ -89,13 +89,13 @@ struct DescribeArgs {
 }
 
 fn main() -> ExitCode {
-    crawler_transport::ensure_cpu_features();
+    crawler_cli::cpu::ensure_cpu_features();
     let cli = Cli::parse();
     match dispatch(cli) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("crawler-plant: error: {e:#}");
-            ExitCode::FAILURE
+            Exit::Failure.into()
         }
     }
 }
@@ -104,7 +104,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     if let Command::Run(a) = cli.command {
         return cosim(a);
     }
-    run(cli).map(|()| ExitCode::SUCCESS)
+    run(cli).map(|()| Exit::Finished.into())
 }
 
 fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
@@ -116,8 +116,9 @@ fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
 }
 
 fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
-    use crawler_plant::checkpoint::Checkpoint;
-    use crawler_plant::cosim::{run, Control, Outcome, RunOptions};
+    use crawler_plant_node::checkpoint::Checkpoint;
+    use crawler_plant_node::link::Control;
+    use crawler_plant_node::runner::{run, Outcome, RunOptions};
     let resume = a.resume.as_deref().map(Checkpoint::load).transpose()?;
     let mut net_args = a.network.clone();
     if let (Some(c), None) = (&resume, &a.network.run_id) {
@@ -172,12 +173,12 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
             } else {
                 println!("{}", report.summary());
             }
-            Ok(ExitCode::SUCCESS)
+            Ok(Exit::Finished.into())
         }
         Outcome::Stopped {
             reason,
             checkpoint,
-            exit_code,
+            exit,
         } => {
             match checkpoint {
                 Some(c) => eprintln!(
@@ -187,7 +188,7 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
                 ),
                 None => eprintln!("crawler-plant: run stopped: {reason} (nothing simulated, no checkpoint written)"),
             }
-            Ok(ExitCode::from(exit_code))
+            Ok(exit.into())
         }
     }
 }
@@ -197,13 +198,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(_) => unreachable!("handled by dispatch"),
         Command::Simulate(a) => {
             let scenario = a.scenario.load()?;
+            let bar = crawler_cli::progress::bar(0, "simulating");
+            let mut show = |done: u64, total: u64| {
+                bar.set_length(total);
+                bar.set_position(done);
+            };
             let report = simulate(
                 &scenario,
                 SimulateOptions {
                     max_episodes: a.max_episodes,
-                    progress: true,
+                    progress: Some(&mut show),
                 },
             )?;
+            bar.finish_and_clear();
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
@@ -218,8 +225,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "invalid --seconds = {}: allowed > 0",
                 a.seconds
             );
-            let r =
-                crawler_plant::bench::bench(&scenario, scenario.plant.numerics.cells, a.seconds)?;
+            let r = crawler_plant_node::bench::bench(
+                &scenario,
+                scenario.plant.numerics.cells,
+                a.seconds,
+            )?;
             println!("{}", serde_json::to_string(&r)?);
             Ok(())
         }

@@ -3,8 +3,8 @@
 use serde::Serialize;
 use std::time::Instant;
 
-use crate::plant::Plant;
-use crate::scenario::Scenario;
+use crawler_plant::plant::Plant;
+use crawler_plant::scenario::Scenario;
 
 /// One measurement.
 #[derive(Debug, Clone, Serialize)]

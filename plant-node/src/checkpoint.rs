@@ -6,10 +6,10 @@ use serde::{Deserialize, Serialize};
 
 use crawler_protocol::Rejections;
 
-use crate::framing;
-use crate::plant::PlantState;
-use crate::scenario::Scenario;
-use crate::simulate::EpisodeLog;
+use crawler_plant::framing;
+use crawler_plant::plant::{Plant, PlantState};
+use crawler_plant::scenario::Scenario;
+use crawler_plant::simulate::EpisodeLog;
 
 const MAGIC: &[u8; 8] = b"CRWLCKPT";
 const VERSION: u32 = 2;
@@ -75,7 +75,7 @@ impl Checkpoint {
             );
         }
         // The state's values are validated when the plant is restored from it.
-        crate::plant::Plant::from_state(&c.state)?;
+        Plant::from_state(&c.state)?;
         Ok(c)
     }
 }

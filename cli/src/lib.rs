@@ -1,0 +1,18 @@
+//! # crawler-cli
+//!
+//! What the soft-crawler programs (`crawler-plant`, `crawler-controller`, `crawler-bridge`,
+//! `crawler`) share on the command line, kept out of the libraries:
+//!
+//! - [`scenario_args`]: the scenario file and the common overrides (`--eps --n-f --f0 --k
+//!   --omega --alpha --cells --t-end`);
+//! - [`progress`]: the progress bar of long runs;
+//! - [`exit`]: the one table of process exit codes;
+//! - [`cpu`]: stop with a clear message on a CPU that lacks the build's instructions.
+
+pub mod cpu;
+pub mod exit;
+pub mod progress;
+pub mod scenario_args;
+
+pub use exit::Exit;
+pub use scenario_args::ScenarioArgs;

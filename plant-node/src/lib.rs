@@ -1,0 +1,20 @@
+//! # crawler-plant-node
+//!
+//! The plant of [`crawler_plant`] as a node of a co-simulation over zenoh (`crawler-plant run`),
+//! and the pieces of the `crawler-plant` program around the physics library. The roles follow
+//! libcosim's split of a co-simulation:
+//!
+//! - [`admission`]: one actuation message decoded and checked for the step the plant waits for,
+//!   rejections counted by cause (pure; no clock, no network);
+//! - [`link`]: the zenoh publishers, subscribers, queryable and liveliness, and the inboxes they
+//!   fill;
+//! - [`runner`]: the lockstep state machine on the plant's fixed-step clock, over an inbox and an
+//!   outbox (the link, or channels in tests);
+//! - [`checkpoint`]: a stopped run (plant state, scenario, bookkeeping), resumed bit-identically;
+//! - [`bench`]: cell updates per second of the stepping loop (`crawler-plant bench`).
+
+pub mod admission;
+pub mod bench;
+pub mod checkpoint;
+pub mod link;
+pub mod runner;
