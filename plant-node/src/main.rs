@@ -77,6 +77,9 @@ struct SimulateArgs {
     /// Largest number of stick-slip episodes listed (all are counted).
     #[arg(long, default_value_t = 10_000)]
     max_episodes: usize,
+    /// Also run on twice as many cells and report each metric's estimated discretisation error.
+    #[arg(long)]
+    convergence: bool,
 }
 
 #[derive(Args)]
@@ -203,6 +206,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 bar.set_length(total);
                 bar.set_position(done);
             };
+            if a.convergence {
+                let c = crawler_plant::convergence::estimate(
+                    &scenario,
+                    a.max_episodes,
+                    Some(&mut show),
+                )?;
+                bar.finish_and_clear();
+                if a.json {
+                    println!("{}", serde_json::to_string_pretty(&c)?);
+                } else {
+                    println!("{}\n\n{}", c.coarse.summary(), c.summary());
+                }
+                return Ok(());
+            }
             let report = simulate(
                 &scenario,
                 SimulateOptions {

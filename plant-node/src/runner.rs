@@ -518,10 +518,14 @@ impl Runner {
             steps as f64 / secs
         );
         let rep = report(&self.scenario.name, self.plant(), &self.log);
-        let summary = rep
-            .as_ref()
-            .ok()
-            .map(|r| serde_json::to_string(r).expect("report serializes"));
+        // The summary on the wire leaves out the episode list (the events stream carried every
+        // episode; the list alone can exceed a status message's size limit).
+        let summary = rep.as_ref().ok().map(|r| {
+            let mut brief = r.clone();
+            brief.events.episodes_truncated |= !brief.events.episodes.is_empty();
+            brief.events.episodes.clear();
+            serde_json::to_string(&brief).expect("report serializes")
+        });
         let rejected = self.rejected(inbox);
         let message = format!(
             "finished at step {}; rejected actuation: {}",

@@ -6,7 +6,8 @@
 //! true one of `m - 1/2` steps on average: that is its duration here, and the stuck node-steps
 //! the kernel counted are corrected by the same half step. A velocity reversal (one step at rest
 //! held by momentum alone, [`Transition::reversal`]) is no stick phase: duration zero. An episode
-//! counts when it lasts at least `numerics.min_stick` seconds, a physical time, so the count, the
+//! counts when it lasts at least `min_stick` seconds (`events.min_stick_periods` of the applied
+//! wave's period), a physical time, so the count, the
 //! mean duration and the stuck fraction converge under refinement (`docs/numerics.md`).
 
 use serde::{Deserialize, Serialize};
@@ -37,7 +38,7 @@ pub struct EventTracker {
     stick_start: Vec<u64>,
     /// True if that stop was a [`Transition::reversal`].
     reversal: Vec<bool>,
-    /// Shortest counted stick phase, s.
+    /// Shortest counted stick phase, s (set by the plant from the applied actuation).
     pub min_stick: f64,
 }
 

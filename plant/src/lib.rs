@@ -19,6 +19,7 @@
 //! it can be linked into another program (an FMU, a controller). The co-simulation node and the
 //! `crawler-plant` program are the crate `crawler-plant-node` (`plant-node/`).
 
+pub mod convergence;
 pub mod cpu;
 pub mod error;
 pub mod events;

@@ -97,7 +97,7 @@ pub mod vr {
     pub const STEP: u32 = 18;
     /// Settle time, s.
     pub const SETTLE: u32 = 19;
-    /// Minimum stick duration, s.
+    /// Shortest counted stick phase, in forcing periods.
     pub const MIN_STICK: u32 = 20;
     /// Averaging block for field actuation, s.
     pub const BLOCK: u32 = 21;
@@ -344,14 +344,14 @@ impl ModelDescription {
                 "Transient skipped before steady averaging",
             ),
             scalar(
-                "min_stick",
+                "min_stick_periods",
                 vr::MIN_STICK,
                 Float64,
                 Parameter,
                 Fixed,
-                "s",
-                Some(nm.min_stick),
-                "Shortest stick phase counted as an episode",
+                "",
+                Some(nm.min_stick_periods),
+                "Shortest stick phase counted as an episode, in periods of the applied wave",
             ),
             scalar(
                 "block",

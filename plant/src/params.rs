@@ -92,8 +92,9 @@ pub struct Numerics {
     pub step: f64,
     /// Transient skipped before steady-state averaging, s (counted from the last actuation change).
     pub settle: f64,
-    /// Shortest stick phase counted as a stick-slip episode, s.
-    pub min_stick: f64,
+    /// Shortest stick phase counted as a stick-slip episode, as a share of the forcing period of
+    /// the wave being applied (of `block` under a muscle-force field).
+    pub min_stick_periods: f64,
     /// Averaging block when the actuation is a general field (no forcing period), s.
     pub block: f64,
     /// Strength of the grid filter per internal step, in [0, 1): the share of the grid-scale
@@ -131,7 +132,7 @@ impl Numerics {
         }
         positive("numerics.step", self.step)?;
         non_negative("numerics.settle", self.settle)?;
-        non_negative("numerics.min_stick", self.min_stick)?;
+        non_negative("events.min_stick_periods", self.min_stick_periods)?;
         positive("numerics.block", self.block)?;
         if !(self.filter.is_finite() && (0.0..1.0).contains(&self.filter)) {
             return Err(ParamError::new(

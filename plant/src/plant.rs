@@ -128,7 +128,7 @@ impl Plant {
             step: 0,
             macro_step: 0,
             metrics: MetricsTracker::new(t0, numerics.block, numerics.settle),
-            events: EventTracker::new(n, numerics.min_stick),
+            events: EventTracker::new(n, numerics.min_stick_periods * numerics.block),
             outputs: StepOutputs::default(),
             episodes: Vec::new(),
             backup: Backup {
@@ -234,6 +234,11 @@ impl Plant {
         &self.metrics
     }
 
+    /// Shortest stick phase counted as an episode under the current actuation, s.
+    pub fn min_stick(&self) -> f64 {
+        self.events.min_stick
+    }
+
     /// Length of the averaging block (forcing period for a wave), s.
     pub fn block_length(&self) -> f64 {
         self.metrics.block_len
@@ -310,6 +315,7 @@ impl Plant {
         let now = self.internal_time(self.step);
         self.metrics
             .restart(now, wave.period(), self.params.numerics.settle);
+        self.events.min_stick = self.params.numerics.min_stick_periods * wave.period();
         Ok(())
     }
 
@@ -340,6 +346,8 @@ impl Plant {
             let now = self.internal_time(self.step);
             self.metrics
                 .restart(now, self.params.numerics.block, self.params.numerics.settle);
+            self.events.min_stick =
+                self.params.numerics.min_stick_periods * self.params.numerics.block;
         }
         Ok(())
     }

@@ -92,7 +92,7 @@ struct RawActuation {
 #[serde(deny_unknown_fields, default)]
 struct RawNumerics {
     cells: i64,
-    courant: f64,
+    courant: Option<f64>,
     step: f64,
     t_end: f64,
     settle: f64,
@@ -104,7 +104,7 @@ impl Default for RawNumerics {
     fn default() -> Self {
         Self {
             cells: 256,
-            courant: 1.0,
+            courant: None,
             step: 1e-3,
             t_end: 10.0,
             settle: 5.0,
@@ -125,6 +125,21 @@ impl Default for RawEvents {
         Self {
             min_stick_periods: 0.005,
         }
+    }
+}
+
+/// Above this frequency ratio the default Courant number is `1 / alpha`.
+pub const SUPERSONIC_ALPHA: f64 = 1.1;
+
+/// The default Courant number for a scenario whose wave has frequency ratio `alpha`: 1 (the
+/// scheme is then exact along characteristics, which the stick phases near resonance need), and
+/// `1 / alpha` for waves more than 10 % faster than the body's sound speed, so that the wave's
+/// pattern (and the stick phases it drives) moves at most one cell per step (`docs/numerics.md`).
+pub fn default_courant(alpha: f64) -> f64 {
+    if alpha > SUPERSONIC_ALPHA {
+        1.0 / alpha
+    } else {
+        1.0
     }
 }
 
@@ -262,7 +277,6 @@ impl Scenario {
         if let Some(l) = length {
             s.plant.length = positive("body.length", l)?;
         }
-        s.plant.numerics.min_stick = self.min_stick_periods * wave.period();
         s.plant.numerics.block = wave.period();
         s.plant.validate()?;
         wave.validate_for_body(s.plant.length, s.plant.numerics.cells, s.plant.boundary)?;
@@ -414,10 +428,13 @@ impl RawScenario {
         };
         let numerics = Numerics {
             cells: cells as usize,
-            courant: self.numerics.courant,
+            courant: match self.numerics.courant {
+                Some(c) => c,
+                None => default_courant(omega / omega_n),
+            },
             step: self.numerics.step,
             settle: self.numerics.settle,
-            min_stick: min_stick_periods * wave.period(),
+            min_stick_periods,
             block,
             filter: self.numerics.filter,
         };

@@ -122,10 +122,20 @@ pub struct ResolvedParameters {
     pub pi_r: Option<f64>,
     /// Wave speed c, m/s.
     pub wave_speed: f64,
-    /// Communication step H, s.
+    /// Communication step H actually used (a whole number of internal steps), s.
     pub step: f64,
-    /// Achieved Courant number.
+    /// Achieved Courant number `c dt / dx`.
     pub courant: f64,
+    /// Cell size dx, m.
+    pub dx: f64,
+    /// Cells per wavelength of the applied wave (null under a field).
+    pub cells_per_wavelength: Option<f64>,
+    /// `"periodic"` or `"free"`.
+    pub boundary: &'static str,
+    /// Grid filter strength per step.
+    pub filter: f64,
+    /// True if the pipe's friction varies along it.
+    pub friction_map: bool,
     /// Transient skipped, s.
     pub settle: f64,
 }
@@ -225,6 +235,11 @@ impl ResolvedParameters {
             wave_speed: c,
             step: plant.step_length(),
             courant: plant.discretisation().courant,
+            dx: plant.discretisation().dx,
+            cells_per_wavelength: wave.map(|w| w.wavelength() / plant.discretisation().dx),
+            boundary: p.boundary.as_str(),
+            filter: p.numerics.filter,
+            friction_map: !p.pipe.is_uniform(),
             settle: p.numerics.settle,
         }
     }
@@ -313,7 +328,7 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
             count: m.episodes,
             per_node_per_period: m.episodes_per_node_per_period,
             mean_duration: m.mean_stick_duration,
-            min_duration: p.numerics.min_stick,
+            min_duration: plant.min_stick(),
             episodes,
             episodes_truncated: log.truncated,
         },
@@ -388,12 +403,26 @@ impl Report {
             opt(p.alpha, 3)
         );
         out += &format!(
-            "grid: {} cells, dt = {:.3e} s, {} steps to t = {} s; {} window {:.3}-{:.3} s ({:.1} periods)\n",
+            "grid: {} cells ({}, {} body of {} m), dx = {:.3e} m, dt = {:.3e} s at Courant number {:.6}, H = {:.4e} s\n",
             self.cells,
+            p.cells_per_wavelength
+                .map_or("field actuation".to_string(), |c| format!("{c:.1} per wavelength")),
+            p.boundary,
+            p.length,
+            p.dx,
             self.dt,
+            p.courant,
+            p.step,
+        );
+        out += &format!(
+            "run: {} steps to t = {} s; {} window {:.3}-{:.3} s ({:.1} periods)\n",
             self.steps,
             self.t_end,
-            if self.window.steady { "steady" } else { "run-average (the actuation changed within the last settle time, so no steady state)" },
+            if self.window.steady {
+                "steady"
+            } else {
+                "run-average (the actuation changed within the last settle time, so no steady state)"
+            },
             self.window.start,
             self.window.end,
             self.window.periods

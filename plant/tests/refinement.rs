@@ -30,7 +30,7 @@ fn at_with(
         s.plant.numerics.courant = c;
     }
     if let Some(m) = min_stick {
-        s.plant.numerics.min_stick = m;
+        s.plant.numerics.min_stick_periods = m;
     }
     run(&s)
 }

@@ -138,3 +138,15 @@ fn long_stick_phases_match_the_travelling_wave_solution() {
         "V's relative errors {errors:?}"
     );
 }
+
+#[test]
+fn above_the_sound_speed_the_default_time_step_keeps_the_stick_phases() {
+    // A wave 1.8 times faster than sound: its pattern moves 1.8 cells per step at Courant 1, and
+    // a stick phase there came out 6 % short and split in two. The default Courant number is
+    // 1 / alpha above alpha = 1.1, so the pattern moves one cell per step.
+    for alpha in [1.3, 1.8] {
+        let s = custom(1.0, 0.2, TAU, alpha, 1.0, 512, 10.0, "");
+        assert!((s.plant.numerics.courant - 1.0 / alpha).abs() < 1e-15);
+        compare(&format!("eps 1, f0 0.2 N, alpha {alpha}"), &s, 0.01, 1e-3);
+    }
+}

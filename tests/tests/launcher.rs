@@ -35,7 +35,13 @@ fn one_command_runs_the_whole_cosimulation() {
         out.stdout
     );
     let rec = read_recording(&rrd).unwrap();
-    assert_eq!(rec.entity("tail/plant").rows, 6001);
+    // one row per communication point 0..=last, the last at or after t = 6 s
+    let last = crawler_plant::Scenario::paper()
+        .plant
+        .discretisation()
+        .unwrap()
+        .steps_until(6.0);
+    assert_eq!(rec.entity("tail/plant").rows as u64, last + 1);
     assert!(rec.entity("summary/velocity").scalars[0] > 0.0);
 }
 

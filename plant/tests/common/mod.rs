@@ -71,6 +71,22 @@ pub fn custom(
     t_end: f64,
     extra: &str,
 ) -> Scenario {
+    custom_body(eps, f0, k, alpha, length, "periodic", cells, t_end, extra)
+}
+
+/// [`custom`] with the body's boundary (`"periodic"` or `"free"`).
+#[allow(clippy::too_many_arguments)]
+pub fn custom_body(
+    eps: f64,
+    f0: f64,
+    k: f64,
+    alpha: f64,
+    length: f64,
+    boundary: &str,
+    cells: usize,
+    t_end: f64,
+    extra: &str,
+) -> Scenario {
     let text = format!(
         r#"
 name = "test"
@@ -79,6 +95,7 @@ area = 1e-4
 density = 0.1
 youngs_modulus = 140e3
 length = {length:?}
+boundary = "{boundary}"
 [friction]
 viscous = 1.0
 dry = 1.0
