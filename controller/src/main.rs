@@ -108,6 +108,10 @@ struct PredictArgs {
     /// paper, or improved (alias travelling-wave).
     #[arg(long, default_value = "improved")]
     model: String,
+    /// The improved model's march steps per forcing period (default 1024; its stick statistics
+    /// converge at first order in them, V, P and sigma at second).
+    #[arg(long, value_name = "STEPS")]
+    march_steps: Option<usize>,
 }
 
 #[derive(Args)]
@@ -293,7 +297,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 
 fn predict(a: PredictArgs) -> anyhow::Result<()> {
     let scenario = a.scenario.load()?;
-    let model = ModelChoice::parse(&a.model).map_err(anyhow::Error::msg)?;
+    let mut model = ModelChoice::parse(&a.model).map_err(anyhow::Error::msg)?;
+    if let Some(steps) = a.march_steps {
+        anyhow::ensure!(
+            (16..=1 << 22).contains(&steps),
+            "invalid --march-steps = {steps}: allowed 16 to {} steps per period",
+            1 << 22
+        );
+        match &mut model {
+            ModelChoice::Improved(m) => m.steps = steps,
+            ModelChoice::Paper => anyhow::bail!(
+                "invalid --march-steps with --model paper: allowed only with the improved model"
+            ),
+        }
+    }
     let op = OperatingPoint::of(&scenario);
     let prediction = model.predict(&op);
     let mut out = serde_json::to_value(&prediction)?;
