@@ -36,6 +36,10 @@ pub struct ScenarioArgs {
     /// End time, s.
     #[arg(long = "t-end", allow_hyphen_values = true)]
     pub t_end: Option<f64>,
+    /// Task mode: end the run when the body has travelled task.distance (success) or spent
+    /// task.energy (failure), as `task.end_run = true` in the scenario.
+    #[arg(long)]
+    pub task: bool,
 }
 
 impl ScenarioArgs {
@@ -50,6 +54,7 @@ impl ScenarioArgs {
             alpha: self.alpha,
             cells: self.cells,
             t_end: self.t_end,
+            end_run: self.task.then_some(true),
         }
     }
 

@@ -35,6 +35,7 @@ pub mod simd;
 pub mod simulate;
 pub mod slave;
 pub mod solver;
+pub mod task;
 pub mod wave;
 
 pub use error::ParamError;

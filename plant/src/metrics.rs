@@ -73,6 +73,9 @@ impl Sums {
 
     /// Appends the span `other`, which must follow this one.
     pub fn merge(&mut self, other: &Sums) {
+        if other.steps == 0 {
+            return;
+        }
         if self.steps == 0 {
             self.start = other.start;
             self.first_v_old = other.first_v_old;
@@ -184,6 +187,10 @@ impl Metrics {
     }
 }
 
+fn empty_sums() -> Sums {
+    Sums::empty(0.0)
+}
+
 /// A completed block, reported as it closes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BlockReport {
@@ -218,6 +225,10 @@ pub struct MetricsTracker {
     /// Every complete block after the run's initial transient, whatever the actuation did: the
     /// fallback window when the actuation changed too recently for a steady window.
     pub run: Sums,
+    /// Every complete block since the tracker was created, transient included (the fallback of a
+    /// run that ended early).
+    #[serde(default = "empty_sums")]
+    pub all: Sums,
     /// Blocks closed since the caller last drained them.
     #[serde(skip)]
     pub closed: Vec<BlockReport>,
@@ -236,6 +247,7 @@ impl MetricsTracker {
             steady: Sums::empty(origin),
             run_settle_until: origin + settle,
             run: Sums::empty(origin),
+            all: Sums::empty(origin),
             closed: Vec::new(),
         }
     }
@@ -248,11 +260,14 @@ impl MetricsTracker {
             let open = self.block;
             self.run.merge(&open);
         }
+        let open = self.block;
+        self.all.merge(&open);
         let closed = std::mem::take(&mut self.closed);
-        let (run, run_settle_until) = (self.run, self.run_settle_until);
+        let (run, run_settle_until, all) = (self.run, self.run_settle_until, self.all);
         *self = Self::new(origin, block_len, settle);
         self.closed = closed;
         self.run = run;
+        self.all = all;
         self.run_settle_until = run_settle_until;
     }
 
@@ -312,6 +327,8 @@ impl MetricsTracker {
             let block = self.block;
             self.run.merge(&block);
         }
+        let block = self.block;
+        self.all.merge(&block);
         self.closed.push(BlockReport {
             index: self.block_index,
             steady,

@@ -29,6 +29,11 @@ pub struct StepOutputs {
     pub input_power: f64,
     /// Nodes stuck at the end of the step.
     pub stuck_nodes: u64,
+    /// Largest engineering stress `sup T / A_c` over the step, Pa.
+    pub max_stress: f64,
+    /// Time within the step during which the stress exceeded the stress limit, s (0 without one,
+    /// see [`Plant::set_stress_limit`]).
+    pub time_over_stress: f64,
 }
 
 /// Why a step was not taken.
@@ -77,6 +82,9 @@ pub struct PlantState {
     pub pending_work: f64,
     /// Σ v over the nodes as the kernel summed it in the last step, m/s.
     pub velocity_sum: f64,
+    /// Stress above which a step's time counts as a violation, Pa (`None`: not counted).
+    #[serde(default)]
+    pub stress_limit: Option<f64>,
 }
 
 /// The dynamic state at the start of a step, restored if the step fails (buffers are reused).
@@ -108,6 +116,8 @@ pub struct Plant {
     episodes: Vec<Episode>,
     backup: Backup,
     pending_work: f64,
+    /// Tension above which a step counts as a stress violation, N (`+inf`: none).
+    tension_limit: f64,
 }
 
 impl Plant {
@@ -141,7 +151,33 @@ impl Plant {
                 velocity_sum: 0.0,
             },
             pending_work: 0.0,
+            tension_limit: f64::INFINITY,
         })
+    }
+
+    /// Counts, from now on, the time during which the stress exceeds `sigma_max` Pa (the task's
+    /// limit); `None` stops counting. See [`StepOutputs::time_over_stress`].
+    pub fn set_stress_limit(&mut self, sigma_max: Option<f64>) -> Result<(), ParamError> {
+        self.tension_limit = match sigma_max {
+            Some(s) => crate::error::positive("task.sigma_max", s)? * self.params.body.area,
+            None => f64::INFINITY,
+        };
+        Ok(())
+    }
+
+    /// The stress limit being counted against, Pa.
+    pub fn stress_limit(&self) -> Option<f64> {
+        self.tension_limit
+            .is_finite()
+            .then(|| self.tension_limit / self.params.body.area)
+    }
+
+    /// Metrics of everything simulated so far (from the run's start, the open block included):
+    /// the fallback of a run that ended before any window closed. `None` before the first step.
+    pub fn whole_run_metrics(&self) -> Option<Metrics> {
+        let mut all = self.metrics.all;
+        all.merge(&self.metrics.block);
+        self.metrics_of(&all)
     }
 
     /// The parameters.
@@ -403,6 +439,8 @@ impl Plant {
         let mut energy = 0.0;
         let mut sum_v = 0.0;
         let mut stuck = 0.0;
+        let mut max_tension = f64::NEG_INFINITY;
+        let mut steps_over = 0u64;
         for _ in 0..self.disc.substeps {
             let t = self.internal_time(self.step);
             let (a, b, omega) = self.wave_coefficients(t);
@@ -425,10 +463,12 @@ impl Plant {
             energy += e;
             sum_v += sums.sum_v;
             stuck = sums.stuck;
-            self.metrics
-                .add_step(t, dt, &sums, e, sums.dissipation * dx * dt);
+            max_tension = max_tension.max(sums.max_tension);
+            if sums.max_tension > self.tension_limit {
+                steps_over += 1;
+            }
+            let first_new = self.episodes.len();
             if !self.solver.transitions.is_empty() {
-                let first_new = self.episodes.len();
                 let applied = self.events.apply(
                     self.step,
                     self.t0,
@@ -436,10 +476,14 @@ impl Plant {
                     &self.solver.transitions,
                     &mut self.episodes,
                 );
+                // The half step taken off a stick phase belongs to its last stuck step, which is
+                // in the block still open (the step below may close it).
                 self.metrics.correct_stuck(applied.stuck_correction);
-                for ep in &self.episodes[first_new..] {
-                    self.metrics.add_episode(ep.duration);
-                }
+            }
+            self.metrics
+                .add_step(t, dt, &sums, e, sums.dissipation * dx * dt);
+            for ep in &self.episodes[first_new..] {
+                self.metrics.add_episode(ep.duration);
             }
             self.step += 1;
         }
@@ -451,6 +495,8 @@ impl Plant {
             mean_speed: sum_v / (self.cells() as f64 * self.disc.substeps as f64),
             input_power: energy / h,
             stuck_nodes: stuck as u64,
+            max_stress: max_tension / self.params.body.area,
+            time_over_stress: steps_over as f64 * dt,
         };
         Ok(self.outputs)
     }
@@ -475,6 +521,7 @@ impl Plant {
             outputs: self.outputs,
             pending_work: self.pending_work,
             velocity_sum: self.solver.velocity_sum(),
+            stress_limit: self.stress_limit(),
         }
     }
 
@@ -546,6 +593,7 @@ impl Plant {
         self.solver.set_velocity_sum(state.velocity_sum);
         self.solver.refresh_friction();
         self.episodes.clear();
+        self.set_stress_limit(state.stress_limit)?;
         Ok(())
     }
 

@@ -153,6 +153,9 @@ pub struct Task {
     pub energy: f64,
     /// Ultimate tensile strength `sigma_max`, Pa.
     pub sigma_max: f64,
+    /// True: the run ends when the centre of mass has travelled `distance` or the actuator has
+    /// spent `energy` (task mode, [`crate::task`]); false: it runs to `t_end`.
+    pub end_run: bool,
 }
 
 impl Default for Task {
@@ -161,6 +164,7 @@ impl Default for Task {
             distance: 1.0,
             energy: 20.0,
             sigma_max: 100e3,
+            end_run: false,
         }
     }
 }
@@ -244,6 +248,8 @@ pub struct Overrides {
     pub cells: Option<i64>,
     /// End time, s.
     pub t_end: Option<f64>,
+    /// Task mode (`task.end_run`).
+    pub end_run: Option<bool>,
 }
 
 /// A validated scenario.
@@ -368,6 +374,9 @@ impl RawScenario {
         }
         if let Some(x) = o.t_end {
             self.numerics.t_end = x;
+        }
+        if let Some(x) = o.end_run {
+            self.task.end_run = x;
         }
 
         let body = Body {

@@ -7,6 +7,7 @@ use crate::metrics::Metrics;
 use crate::plant::{Drive, Plant};
 use crate::scenario::Scenario;
 use crate::slave::{Slave, SlaveError, StepStatus};
+use crate::task::{TaskReport, TaskTracker};
 
 /// Told how far a run got: `(communication steps done, communication steps in the run)`.
 pub type Progress<'a> = &'a mut dyn FnMut(u64, u64);
@@ -184,6 +185,8 @@ pub struct Report {
     pub state_digest: String,
     /// The resolved parameters.
     pub parameters: ResolvedParameters,
+    /// How the run did against the scenario's task (null when no task was followed).
+    pub task: Option<TaskReport>,
 }
 
 /// The averaging window of a report.
@@ -200,6 +203,9 @@ pub struct Window {
     /// controller): the window is then every step after the run's first `settle` seconds, and
     /// the metrics are run averages, not a steady state.
     pub steady: bool,
+    /// True when the run ended before its transient did (a task reached early): the metrics are
+    /// averages over the whole run, transient included.
+    pub whole_run: bool,
 }
 
 impl ResolvedParameters {
@@ -296,18 +302,34 @@ pub fn state_digest(plant: &Plant) -> String {
 
 /// The report of a finished run of `plant` (scenario `name`), with the episodes of `log`.
 pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, SimulateError> {
+    report_with_task(name, plant, log, None)
+}
+
+/// [`report`] with the run's task progress (a task-mode run may end before its transient does:
+/// its metrics are then averages over the whole run).
+pub fn report_with_task(
+    name: &str,
+    plant: &Plant,
+    log: &EpisodeLog,
+    task: Option<&TaskTracker>,
+) -> Result<Report, SimulateError> {
     let p = plant.params();
-    let (m, steady): (Metrics, bool) = match (plant.steady_metrics(), plant.run_metrics()) {
-        (Some(m), _) => (m, true),
-        (None, Some(m)) => (m, false),
-        (None, None) => {
-            return Err(SimulateError::NoSteadyWindow {
-                t_end: plant.time(),
-                settle: p.numerics.settle,
-                period: plant.block_length(),
-            })
-        }
-    };
+    let ended_early = task.is_some_and(|t| t.task.end_run && t.decided().is_some());
+    let (m, steady, whole_run): (Metrics, bool, bool) =
+        match (plant.steady_metrics(), plant.run_metrics()) {
+            (Some(m), _) => (m, true, false),
+            (None, Some(m)) => (m, false, false),
+            (None, None) => match plant.whole_run_metrics().filter(|_| ended_early) {
+                Some(m) => (m, false, true),
+                None => {
+                    return Err(SimulateError::NoSteadyWindow {
+                        t_end: plant.time(),
+                        settle: p.numerics.settle,
+                        period: plant.block_length(),
+                    })
+                }
+            },
+        };
     let mut episodes = log.episodes.clone();
     episodes.retain(|e| e.end >= m.start && e.end < m.end);
     let d = *plant.discretisation();
@@ -337,6 +359,7 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
             end: m.end,
             periods: m.periods,
             steady,
+            whole_run,
         },
         cells: p.numerics.cells,
         dt: d.dt,
@@ -345,6 +368,7 @@ pub fn report(name: &str, plant: &Plant, log: &EpisodeLog) -> Result<Report, Sim
         t_end: plant.time(),
         state_digest: state_digest(plant),
         parameters: ResolvedParameters::of(plant),
+        task: task.map(TaskTracker::report),
     })
 }
 
@@ -358,6 +382,8 @@ pub fn simulate(scenario: &Scenario, mut opts: SimulateOptions) -> Result<Report
     let h = disc.step;
     let steps = disc.steps_until(scenario.t_end);
     let mut log = EpisodeLog::new(opts.max_episodes);
+    slave.set_stress_limit(Some(scenario.task.sigma_max))?;
+    let mut task = TaskTracker::new(scenario.task, 0.0, mean_position(slave.plant()));
     for n in 0..steps {
         match slave.do_step(n as f64 * h, h) {
             StepStatus::Ok => {}
@@ -373,6 +399,11 @@ pub fn simulate(scenario: &Scenario, mut opts: SimulateOptions) -> Result<Report
             StepStatus::Error(e) => return Err(e.into()),
         }
         log.observe(slave.plant());
+        let plant = slave.plant();
+        let decided = task.observe(plant.time(), h, mean_position(plant), &plant.outputs());
+        if scenario.task.end_run && decided.is_some() {
+            break;
+        }
         if n % 256 == 0 {
             if let Some(progress) = opts.progress.as_mut() {
                 progress(n + 1, steps);
@@ -382,7 +413,12 @@ pub fn simulate(scenario: &Scenario, mut opts: SimulateOptions) -> Result<Report
     if let Some(progress) = opts.progress.as_mut() {
         progress(steps, steps);
     }
-    report(&scenario.name, slave.plant(), &log)
+    report_with_task(&scenario.name, slave.plant(), &log, Some(&task))
+}
+
+/// The body's mean displacement (its centre of mass), m.
+pub fn mean_position(plant: &Plant) -> f64 {
+    plant.displacement().iter().sum::<f64>() / plant.cells() as f64
 }
 
 impl Report {
@@ -420,6 +456,8 @@ impl Report {
             self.t_end,
             if self.window.steady {
                 "steady"
+            } else if self.window.whole_run {
+                "whole-run (the task ended the run before its transient settled)"
             } else {
                 "run-average (the actuation changed within the last settle time, so no steady state)"
             },
@@ -439,6 +477,9 @@ impl Report {
             self.events.count, self.events.per_node_per_period, self.events.mean_duration
         );
         out += &format!("  state digest      {}", self.state_digest);
+        if let Some(t) = &self.task {
+            out += &format!("\n{}", t.summary());
+        }
         out
     }
 }

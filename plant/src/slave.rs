@@ -162,6 +162,11 @@ impl Slave {
         &self.params
     }
 
+    /// Counts the time during which the stress exceeds `sigma_max` Pa ([`Plant::set_stress_limit`]).
+    pub fn set_stress_limit(&mut self, sigma_max: Option<f64>) -> Result<(), SlaveError> {
+        Ok(self.plant.set_stress_limit(sigma_max)?)
+    }
+
     /// The model description.
     pub fn model_description(&self) -> ModelDescription {
         ModelDescription::new(&self.params)
