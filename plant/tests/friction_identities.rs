@@ -19,7 +19,7 @@ fn steady_identity_holds_and_speed_is_bounded() {
             let f = s.plant.friction;
             // The exact discrete analogue: rho dV/T_w + c_v <(v+ + v-)/2> + eps c_d (<s> - n_F) = 0.
             assert!(
-                r.momentum_residual < 1e-6,
+                r.momentum_residual < 1e-9,
                 "eps {eps}, alpha {alpha}: discrete momentum balance off by {:e}",
                 r.momentum_residual
             );
