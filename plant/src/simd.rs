@@ -100,10 +100,10 @@ impl F4 {
         self.0.cmp_ne(f64x4::ZERO).any()
     }
 
-    /// True if any lane lies outside `[lo, hi)`.
+    /// Lane-wise `1.0` where the lane lies outside `[lo, hi)`, else `0.0`.
     #[inline(always)]
-    pub fn any_outside(self, lo: Self, hi: Self) -> bool {
-        (self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0)).any()
+    pub fn outside_as_one(self, lo: Self, hi: Self) -> Self {
+        F4((self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0)) & f64x4::ONE)
     }
 
     /// Lane 0.
@@ -172,8 +172,17 @@ mod tests {
         assert!(F4(f64x4::new([0.0, 0.0, 1.0, 0.0])).any_nonzero());
         assert!(!z.any_nonzero());
         let (lo, hi) = (F4::splat(-1.0), F4::splat(1.0));
-        assert!(!F4(f64x4::new([-1.0, 0.0, 0.5, 0.999])).any_outside(lo, hi));
-        assert!(F4(f64x4::new([-1.0, 0.0, 0.5, 1.0])).any_outside(lo, hi));
-        assert!(F4(f64x4::new([-1.5, 0.0, 0.5, 0.0])).any_outside(lo, hi));
+        assert_eq!(
+            F4(f64x4::new([-1.0, 0.0, 0.5, 0.999]))
+                .outside_as_one(lo, hi)
+                .lanes(),
+            [0.0; 4]
+        );
+        assert_eq!(
+            F4(f64x4::new([-1.5, 0.0, 1.0, 0.999]))
+                .outside_as_one(lo, hi)
+                .lanes(),
+            [1.0, 0.0, 1.0, 0.0]
+        );
     }
 }

@@ -107,6 +107,8 @@ struct Coefficients {
 #[derive(Debug, Clone)]
 struct NodeFriction {
     map: FrictionMap,
+    /// The map's intervals (index 0 before the first piece) with their coefficients.
+    intervals: Vec<Interval>,
     /// World position of each node at zero displacement, m.
     origin: Vec<f64>,
     /// Map interval each node is in.
@@ -120,15 +122,39 @@ struct NodeFriction {
     inv_g: Vec<f64>,
     /// `eps_i c_d n_F,i / a`, m/s.
     push: Vec<f64>,
-    /// Groups of four nodes of which one left its interval in the last step.
-    moved: Vec<usize>,
+    /// Per node: 1.0 if it left its interval in the last step (written by the kernel).
+    escaped: Vec<f64>,
+}
+
+/// One interval of the map with the update's coefficients worked out once.
+#[derive(Debug, Clone, Copy)]
+struct Interval {
+    lo: f64,
+    hi: f64,
+    g: f64,
+    inv_g: f64,
+    push: f64,
 }
 
 impl NodeFriction {
-    fn new(map: FrictionMap, origin: Vec<f64>) -> Self {
+    fn new(map: FrictionMap, origin: Vec<f64>, c: &Coefficients, dry: f64) -> Self {
         let n = origin.len();
+        let intervals = (0..=map.pieces.len())
+            .map(|j| {
+                let l = map.interval(j);
+                let g = l.eps * dry / c.a;
+                Interval {
+                    lo: l.lo,
+                    hi: l.hi,
+                    g,
+                    inv_g: if g > 0.0 { 1.0 / g } else { 0.0 },
+                    push: g * l.n_f,
+                }
+            })
+            .collect();
         Self {
             map,
+            intervals,
             origin,
             index: vec![0; n],
             u_lo: vec![0.0; n],
@@ -136,41 +162,42 @@ impl NodeFriction {
             g: vec![0.0; n],
             inv_g: vec![0.0; n],
             push: vec![0.0; n],
-            moved: Vec::new(),
+            escaped: vec![0.0; n],
         }
     }
 
     /// Sets node `i`'s coefficients for displacement `u`, searching the map from scratch.
-    fn place(&mut self, i: usize, u: f64, c: &Coefficients, dry: f64) {
-        let x = self.origin[i] + u;
-        let l = self.map.locate(x);
-        self.set(i, l, c, dry);
+    fn place(&mut self, i: usize, u: f64) {
+        let j = self.map.locate(self.origin[i] + u).index;
+        self.set(i, j);
     }
 
     /// Moves node `i` to the interval holding displacement `u`, walking from its current one.
-    fn follow(&mut self, i: usize, u: f64, c: &Coefficients, dry: f64) {
+    #[inline]
+    fn follow(&mut self, i: usize, u: f64) {
         if u >= self.u_lo[i] && u < self.u_hi[i] {
             return;
         }
         let x = self.origin[i] + u;
-        let mut l = self.map.interval(self.index[i]);
-        while x >= l.hi {
-            l = self.map.interval(l.index + 1);
+        let mut j = self.index[i];
+        while x >= self.intervals[j].hi {
+            j += 1;
         }
-        while x < l.lo {
-            l = self.map.interval(l.index - 1);
+        while x < self.intervals[j].lo {
+            j -= 1;
         }
-        self.set(i, l, c, dry);
+        self.set(i, j);
     }
 
-    fn set(&mut self, i: usize, l: crate::pipe::Located, c: &Coefficients, dry: f64) {
-        self.index[i] = l.index;
+    #[inline]
+    fn set(&mut self, i: usize, j: usize) {
+        let l = self.intervals[j];
+        self.index[i] = j;
         self.u_lo[i] = l.lo - self.origin[i];
         self.u_hi[i] = l.hi - self.origin[i];
-        let g = l.eps * dry / c.a;
-        self.g[i] = g;
-        self.inv_g[i] = if g > 0.0 { 1.0 / g } else { 0.0 };
-        self.push[i] = g * l.n_f;
+        self.g[i] = l.g;
+        self.inv_g[i] = l.inv_g;
+        self.push[i] = l.push;
     }
 }
 
@@ -181,8 +208,6 @@ pub struct Solver {
     boundary: Boundary,
     /// Uniform dry friction coefficient.
     eps: f64,
-    /// Normal load per length `c_d`, N/m.
-    dry: f64,
     /// Displacement `u_i` at nodes, m.
     pub u: Vec<f64>,
     /// Velocity `v_i` over the last internal step, m/s.
@@ -208,6 +233,10 @@ pub struct Solver {
     map: Option<NodeFriction>,
     /// Filter fluxes at the half nodes (scratch), m/s.
     flux: Vec<f64>,
+    /// Per face: 1.0 where the filter's flux may act (no stuck node within one node of its
+    /// stencil, stencil inside the body), 0.0 where not. Kept up to date at every stick/slip
+    /// switch, so the filter reads one mask instead of six stick flags per face.
+    face_open: Vec<f64>,
     /// Nodes that switched stick/slip in the last step (cleared each step).
     pub transitions: Vec<Transition>,
 }
@@ -240,9 +269,9 @@ impl Solver {
             let origin = (0..n)
                 .map(|i| params.pipe.start + params.boundary.node_position(i, disc.dx))
                 .collect();
-            let mut m = NodeFriction::new(friction_map, origin);
+            let mut m = NodeFriction::new(friction_map, origin, &coef, params.friction.dry);
             for i in 0..n {
-                m.place(i, 0.0, &coef, params.friction.dry);
+                m.place(i, 0.0);
             }
             m
         });
@@ -250,7 +279,6 @@ impl Solver {
             coef,
             boundary: params.boundary,
             eps: params.friction.eps,
-            dry: params.friction.dry,
             u: vec![0.0; n],
             v: vec![0.0; n],
             stuck: vec![false; n],
@@ -265,6 +293,7 @@ impl Solver {
             tension: vec![0.0; n],
             map,
             flux: vec![0.0; n],
+            face_open: Vec::new(),
             transitions: Vec::new(),
         }
     }
@@ -295,14 +324,51 @@ impl Solver {
         for (f, &s) in self.stuck_flags.iter_mut().zip(stuck) {
             *f = if s { 1.0 } else { 0.0 };
         }
+        self.refresh_faces(0..self.cells());
+    }
+
+    /// Node `i + offset` on this body: wrapped around a periodic body, `None` off a free one.
+    #[inline]
+    fn node_at(&self, i: usize, offset: isize) -> Option<usize> {
+        let n = self.cells() as isize;
+        let j = i as isize + offset;
+        match self.boundary {
+            Boundary::Periodic => Some(j.rem_euclid(n) as usize),
+            Boundary::Free => (0..n).contains(&j).then_some(j as usize),
+        }
+    }
+
+    /// Recomputes the filter's face mask for the faces whose window holds a node of `nodes`.
+    fn refresh_faces(&mut self, nodes: std::ops::Range<usize>) {
+        let n = self.cells();
+        if self.face_open.len() != n {
+            self.face_open = vec![0.0; n];
+            return self.refresh_faces(0..n);
+        }
+        let span = if nodes.len() >= n {
+            0..n as isize
+        } else {
+            nodes.start as isize - 3..nodes.end as isize + 2
+        };
+        for f in span {
+            let Some(face) = self.node_at(0, f) else {
+                continue;
+            };
+            // the stencil i-1 ..= i+2 must be inside the body, and no node of i-2 ..= i+3 stuck
+            let inside = (-1..=2).all(|o| self.node_at(face, o).is_some());
+            let free = (-2..=3).all(|o| {
+                self.node_at(face, o)
+                    .is_none_or(|j| self.stuck_flags[j] == 0.0)
+            });
+            self.face_open[face] = if inside && free { 1.0 } else { 0.0 };
+        }
     }
 
     /// Re-places every node in the friction map after its displacement was set from outside.
     pub fn refresh_friction(&mut self) {
-        let (c, dry) = (self.coef, self.dry);
         if let Some(m) = &mut self.map {
             for (i, &u) in self.u.iter().enumerate() {
-                m.place(i, u, &c, dry);
+                m.place(i, u);
             }
         }
     }
@@ -533,38 +599,54 @@ impl Solver {
             changed = marks[0].to_bits();
             let mut any = F4::default();
             let mut b = 1;
-            while b < 1 + whole {
-                let r = b..b + LANES;
-                let (g, push, inv_g) = match &map {
-                    Some(m) => (
-                        F4::load(&m.g[r.clone()]),
-                        F4::load(&m.push[r.clone()]),
-                        F4::load(&m.inv_g[r.clone()]),
-                    ),
-                    None => (k.g, k.push, k.inv_g),
-                };
-                let (v_new, stuck) = node_simd::<FRICTION, MAP>(
-                    &k,
-                    F4::load(&v[r.clone()]),
-                    F4::load(&t[r.clone()]) - F4::load(&t[b - 1..b - 1 + LANES]),
-                    g,
-                    push,
-                    inv_g,
-                    &mut acc,
-                );
-                let change = stuck ^ F4::load(&flags[r.clone()]);
-                let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
-                u_new.store(&mut u[r.clone()]);
-                v_new.store(&mut v[r.clone()]);
-                stuck.store(&mut flags[r.clone()]);
-                change.store(&mut marks[r.clone()]);
-                any = any | change;
-                if let Some(m) = &mut map {
-                    if u_new.any_outside(F4::load(&m.u_lo[r.clone()]), F4::load(&m.u_hi[r])) {
-                        m.moved.push(b);
-                    }
+            if let Some(m) = map.as_deref_mut().filter(|_| MAP) {
+                // Per-node friction: the coefficients and the interval bounds come from arrays.
+                let (gs, pushes, inv_gs) = (&m.g[..], &m.push[..], &m.inv_g[..]);
+                let (lo, hi, escaped) = (&m.u_lo[..], &m.u_hi[..], &mut m.escaped[..]);
+                while b < 1 + whole {
+                    let r = b..b + LANES;
+                    let (v_new, stuck) = node_simd::<FRICTION, true>(
+                        &k,
+                        F4::load(&v[r.clone()]),
+                        F4::load(&t[r.clone()]) - F4::load(&t[b - 1..b - 1 + LANES]),
+                        F4::load(&gs[r.clone()]),
+                        F4::load(&pushes[r.clone()]),
+                        F4::load(&inv_gs[r.clone()]),
+                        &mut acc,
+                    );
+                    let change = stuck ^ F4::load(&flags[r.clone()]);
+                    let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
+                    u_new.store(&mut u[r.clone()]);
+                    v_new.store(&mut v[r.clone()]);
+                    stuck.store(&mut flags[r.clone()]);
+                    change.store(&mut marks[r.clone()]);
+                    u_new
+                        .outside_as_one(F4::load(&lo[r.clone()]), F4::load(&hi[r.clone()]))
+                        .store(&mut escaped[r]);
+                    any = any | change;
+                    b += LANES;
                 }
-                b += LANES;
+            } else {
+                while b < 1 + whole {
+                    let r = b..b + LANES;
+                    let (v_new, stuck) = node_simd::<FRICTION, false>(
+                        &k,
+                        F4::load(&v[r.clone()]),
+                        F4::load(&t[r.clone()]) - F4::load(&t[b - 1..b - 1 + LANES]),
+                        k.g,
+                        k.push,
+                        k.inv_g,
+                        &mut acc,
+                    );
+                    let change = stuck ^ F4::load(&flags[r.clone()]);
+                    let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
+                    u_new.store(&mut u[r.clone()]);
+                    v_new.store(&mut v[r.clone()]);
+                    stuck.store(&mut flags[r.clone()]);
+                    change.store(&mut marks[r]);
+                    any = any | change;
+                    b += LANES;
+                }
             }
             if any.any_nonzero() {
                 changed |= 1;
@@ -621,49 +703,33 @@ impl Solver {
     /// order. Returns the sum of the new velocities.
     fn filter(&mut self) -> f64 {
         let n = self.cells();
+        if self.face_open.len() != n {
+            self.refresh_faces(0..n);
+        }
+        let (v, open, flux) = (&self.v[..], &self.face_open[..], &mut self.flux[..]);
         let periodic = self.boundary == Boundary::Periodic;
-        let (v, flags, flux) = (&self.v[..], &self.stuck_flags[..], &mut self.flux[..]);
-        let at = |i: isize| -> Option<usize> {
+        // Index `i` on the body (wrapped around a periodic one; on a free one the mask is zero
+        // wherever the stencil leaves the body, so the clamped value is never used).
+        let at = |i: isize| -> usize {
             if periodic {
-                Some(i.rem_euclid(n as isize) as usize)
-            } else if (0..n as isize).contains(&i) {
-                Some(i as usize)
+                i.rem_euclid(n as isize) as usize
             } else {
-                None
+                i.clamp(0, n as isize - 1) as usize
             }
         };
-        let edge_flux = |i: usize| -> f64 {
-            let i = i as isize;
-            let stuck_near = (i - 2..=i + 3).any(|j| at(j).is_some_and(|j| flags[j] != 0.0));
-            match (at(i - 1), at(i), at(i + 1), at(i + 2)) {
-                (Some(a), Some(b), Some(c), Some(d)) if !stuck_near => {
-                    (v[d] - v[a]) - 3.0 * (v[c] - v[b])
-                }
-                _ => 0.0,
-            }
-        };
-        // Faces 2 .. n - 6 (blocking window i-2 ..= i+3 inside) four at a time.
+        // Faces 1 ..= n - 3 (stencil i-1 ..= i+2 inside the arrays) four at a time.
         let three = F4::splat(3.0);
-        let one = F4::splat(1.0);
-        let mut i = 2;
-        while i + LANES + 3 <= n {
-            let load = |x: &[f64], offset: isize| {
-                let j = (i as isize + offset) as usize;
-                F4::load(&x[j..j + LANES])
-            };
-            let (a, b, c, d) = (load(v, -1), load(v, 0), load(v, 1), load(v, 2));
-            let stuck_near = load(flags, -2)
-                .max(load(flags, -1))
-                .max(load(flags, 0))
-                .max(load(flags, 1))
-                .max(load(flags, 2))
-                .max(load(flags, 3));
-            let f = ((d - a) - three * (c - b)) * (one - stuck_near);
-            f.store(&mut flux[i..i + LANES]);
+        let mut i = 1;
+        while i + LANES + 2 <= n {
+            let f = ((F4::load(&v[i + 2..i + 6]) - F4::load(&v[i - 1..i + 3]))
+                - three * (F4::load(&v[i + 1..i + 5]) - F4::load(&v[i..i + 4])))
+                * F4::load(&open[i..i + 4]);
+            f.store(&mut flux[i..i + 4]);
             i += LANES;
         }
-        for j in (i..n).chain([0, 1]) {
-            flux[j] = edge_flux(j);
+        for j in (i..n).chain([0]) {
+            let j2 = j as isize;
+            flux[j] = open[j] * ((v[at(j2 + 2)] - v[at(j2 - 1)]) - 3.0 * (v[at(j2 + 1)] - v[j]));
         }
         let k = F4::splat(-self.coef.filter / 16.0);
         let dt = F4::splat(self.coef.dt);
@@ -691,24 +757,24 @@ impl Solver {
         sum.sum() + tail
     }
 
-    /// Moves the nodes that left their map interval to the interval they are in now: the groups
-    /// the kernel flagged, node 0 and the scalar tail.
+    /// Moves the nodes that left their map interval to the interval they are in now: those the
+    /// kernel marked, node 0 and the scalar tail.
     fn follow_map(&mut self, whole: usize) {
-        let (c, dry) = (self.coef, self.dry);
         let n = self.cells();
         let Some(m) = &mut self.map else { return };
-        let mut moved = std::mem::take(&mut m.moved);
-        for &b in &moved {
-            for i in b..b + LANES {
-                m.follow(i, self.u[i], &c, dry);
+        let mut b = 1;
+        while b < 1 + whole {
+            if F4::load(&m.escaped[b..b + LANES]).any_nonzero() {
+                for i in b..b + LANES {
+                    m.follow(i, self.u[i]);
+                }
             }
+            b += LANES;
         }
-        m.follow(0, self.u[0], &c, dry);
+        m.follow(0, self.u[0]);
         for i in 1 + whole..n {
-            m.follow(i, self.u[i], &c, dry);
+            m.follow(i, self.u[i]);
         }
-        moved.clear();
-        m.moved = moved;
     }
 
     /// Records node `i`'s switch (and, for a stop, whether only momentum put it at rest).
@@ -716,6 +782,9 @@ impl Solver {
         let n = self.cells();
         let stuck = self.stuck_flags[i] != 0.0;
         self.stuck[i] = stuck;
+        if self.coef.filter > 0.0 {
+            self.refresh_faces(i..i + 1);
+        }
         let reversal = stuck && {
             let (g, push) = match &self.map {
                 Some(m) => (m.g[i], m.push[i]),
@@ -799,7 +868,7 @@ fn node_simd<const FRICTION: bool, const MAP: bool>(
     } else {
         (b, zero, zero)
     };
-    acc.add(v_new, v_old, s, stuck);
+    acc.add::<MAP>(v_new, v_old, s, stuck);
     if MAP {
         acc.add_map(v_new, s, g, push);
     }
@@ -913,14 +982,10 @@ struct NodeLanes {
     sum_vm2: F4,
     /// sum of |v_new|
     sum_abs_v: F4,
-    /// per-node friction: sum of g |v_new|
-    sum_g_abs_v: F4,
-    /// per-node friction: sum of push v_new
-    sum_push_v: F4,
-    /// per-node friction: sum of g s
-    sum_g_s: F4,
-    /// per-node friction: sum of push
-    sum_push: F4,
+    /// per-node friction: sum of `g s - push` (the Coulomb force in velocity units)
+    sum_f: F4,
+    /// per-node friction: sum of `(g s - push) v_new`
+    sum_fv: F4,
 }
 
 struct NodeSums {
@@ -932,22 +997,24 @@ struct NodeSums {
 }
 
 impl NodeLanes {
+    /// The reductions every node adds (`sum_abs_v` only with uniform friction).
     #[inline(always)]
-    fn add(&mut self, v_new: F4, v_old: F4, s: F4, stuck: F4) {
+    fn add<const MAP: bool>(&mut self, v_new: F4, v_old: F4, s: F4, stuck: F4) {
         let vs = v_old + v_new;
         self.sum_v = self.sum_v + v_new;
         self.sum_s = self.sum_s + s;
         self.stuck = self.stuck + stuck;
         self.sum_vm2 = self.sum_vm2 + vs * vs;
-        self.sum_abs_v = self.sum_abs_v + v_new.abs();
+        if !MAP {
+            self.sum_abs_v = self.sum_abs_v + v_new.abs();
+        }
     }
 
     #[inline(always)]
     fn add_map(&mut self, v_new: F4, s: F4, g: F4, push: F4) {
-        self.sum_g_abs_v = self.sum_g_abs_v + g * v_new.abs();
-        self.sum_push_v = self.sum_push_v + push * v_new;
-        self.sum_g_s = self.sum_g_s + g * s;
-        self.sum_push = self.sum_push + push;
+        let f = g * s - push;
+        self.sum_f = self.sum_f + f;
+        self.sum_fv = self.sum_fv + f * v_new;
     }
 
     #[inline(always)]
@@ -962,10 +1029,9 @@ impl NodeLanes {
 
     #[inline(always)]
     fn add_map_scalar(&mut self, v_new: f64, s: f64, g: f64, push: f64) {
-        self.sum_g_abs_v = self.sum_g_abs_v + lane0(g * v_new.abs());
-        self.sum_push_v = self.sum_push_v + lane0(push * v_new);
-        self.sum_g_s = self.sum_g_s + lane0(g * s);
-        self.sum_push = self.sum_push + lane0(push);
+        let f = g * s - push;
+        self.sum_f = self.sum_f + lane0(f);
+        self.sum_fv = self.sum_fv + lane0(f * v_new);
     }
 
     /// Combines the lanes. Dissipation density summed over nodes:
@@ -976,10 +1042,7 @@ impl NodeLanes {
         let sum_s = self.sum_s.sum();
         let viscous = 0.25 * c.viscous * self.sum_vm2.sum();
         let (coulomb, friction_force) = if map {
-            (
-                c.a * (self.sum_g_abs_v.sum() - self.sum_push_v.sum()),
-                c.a * (self.sum_g_s.sum() - self.sum_push.sum()),
-            )
+            (c.a * self.sum_fv.sum(), c.a * self.sum_f.sum())
         } else {
             (
                 c.band * (self.sum_abs_v.sum() - c.n_f * sum_v),
