@@ -8,7 +8,7 @@ use crate::evaluate::convergence::estimate;
 use crate::plan::{MapFigures, Plan};
 use crate::point::Point;
 use crate::record::Record;
-use crate::table::{error_floor, model_error};
+use crate::table::point_error;
 
 /// The metrics a map shows (those of them the plan keeps).
 pub const MAP_METRICS: [&str; 4] = ["velocity", "power", "mileage", "max_stress"];
@@ -235,8 +235,7 @@ impl Maps {
                 valid.get_mut(model).expect("a model")[panel][cell] =
                     Some(if mr.valid { 1.0 } else { 0.0 });
                 for k in &metrics {
-                    let floor = error_floor(k, p, &plant.run.metrics);
-                    let e = model_error(k, mr.metrics.get(k), plant.run.metrics.get(k), floor);
+                    let e = point_error(k, p, &mr.metrics, &plant.run.metrics);
                     errors.get_mut(&(model.clone(), k.clone())).expect("a pair")[panel][cell] = e;
                 }
             }

@@ -80,21 +80,46 @@ pub fn model_error(metric: &str, pred: Option<f64>, plant: Option<f64>, floor: f
     (den > 0.0).then(|| (p - q) / den).filter(|e| e.is_finite())
 }
 
-/// The floor of [`model_error`] for `metric` at `point`: 1e-9 of the body's oscillation speed
-/// scale `u_c omega = f0 omega / (k A_c E)` for the speed (and of that over the plant's power
-/// for the mileage); none for the others.
-pub fn error_floor(metric: &str, point: &Point, plant: &Metrics) -> f64 {
+/// The scales of a point: the body's oscillation speed `u_c omega = f0 omega / (k A_c E)` (m/s)
+/// and the power `f0 u_c omega` per wavelength times the wavelengths on the body (W).
+fn scales(point: &Point) -> (f64, f64) {
     let s = &point.scenario;
     let w = s.wave;
-    let v_scale = w.f0 * w.omega / (w.k * s.plant.body.stiffness());
+    let v = w.f0 * w.omega / (w.k * s.plant.body.stiffness());
+    let waves = (w.k * s.plant.length / std::f64::consts::TAU).round().max(1.0);
+    (v, w.f0 * v * waves)
+}
+
+/// The floor of [`model_error`] for `metric` at `point`: 1e-9 of the point's speed scale for the
+/// speed and of its power scale for the power (values below are round-off: a body at rest has
+/// V = 0 and P = 0 up to round-off); none for the others.
+pub fn error_floor(metric: &str, point: &Point) -> f64 {
+    let (v, p) = scales(point);
     match metric {
-        "velocity" => 1e-9 * v_scale,
-        "mileage" => plant
-            .power
-            .filter(|p| *p > 0.0)
-            .map_or(0.0, |p| 1e-9 * v_scale / p),
+        "velocity" => 1e-9 * v,
+        "power" => 1e-9 * p,
         _ => 0.0,
     }
+}
+
+/// The value of `metric` in `m` that a model is compared on: the mileage `|V| / P` only where
+/// the power is above round-off (a body at rest has no mileage: 0 / 0).
+pub fn comparable(metric: &str, m: &Metrics, point: &Point) -> Option<f64> {
+    let v = m.get(metric)?;
+    if metric == "mileage" && m.power?.abs() <= error_floor("power", point) {
+        return None;
+    }
+    Some(v)
+}
+
+/// The model's error for `metric` at `point` ([`model_error`] of the [`comparable`] values).
+pub fn point_error(metric: &str, point: &Point, model: &Metrics, plant: &Metrics) -> Option<f64> {
+    model_error(
+        metric,
+        comparable(metric, model, point),
+        comparable(metric, plant, point),
+        error_floor(metric, point),
+    )
 }
 
 /// The results of `points` (plan order) with their `records` (same order) as one batch.
@@ -348,17 +373,13 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                     if absolute(m) {
                         format!("{model}.{m} - plant.{m}")
                     } else {
-                        format!("{model}.{m} / plant.{m} - 1")
+                        format!(
+                            "{model}.{m} / plant.{m} - 1 (the denominator at least 1e-9 of the point's scale; null where undefined)"
+                        )
                     },
                     &|p, r| {
                         let plant = r.plant.as_ref()?;
-                        let floor = error_floor(m, p, &plant.run.metrics);
-                        model_error(
-                            m,
-                            pick(r, mi).and_then(|x| x.metrics.get(m)),
-                            plant.run.metrics.get(m),
-                            floor,
-                        )
+                        point_error(m, p, &pick(r, mi)?.metrics, &plant.run.metrics)
                     },
                 ));
             }

@@ -12,7 +12,7 @@ import pyarrow.parquet as pq
 path, rows = sys.argv[1], int(sys.argv[2])
 pf = pq.ParquetFile(path)
 t = pf.read()
-meta = {k.decode(): v.decode() for k, v in (pf.schema_arrow.metadata or {}).items()}
+meta = {k.decode(): v.decode() for k, v in (pf.metadata.metadata or {}).items()}
 assert meta.get("crawler.sweep.format") == "1", meta.keys()
 assert "crawler.sweep.code" in meta
 assert t.num_rows == rows, (t.num_rows, rows)
@@ -31,8 +31,10 @@ for i in range(rows):
     eps, dry, visc, n_f = d["eps"][i], d["dry"][i], d["viscous"][i], d["n_f"][i]
     v = d["plant.velocity"][i]
     s = d["plant.mean_friction_selection"][i]
-    # the plant's steady-state identity (exact in the scheme)
-    assert abs(v - eps * dry * (n_f - s) / visc) <= 1e-9 * max(abs(v), 1e-12), (i, v)
+    # the plant's steady-state identity, up to the window's change of momentum rho dV / T_w
+    # (short settle times here); the scheme's discrete momentum balance itself holds to round-off
+    assert abs(v - eps * dry * (n_f - s) / visc) <= 1e-4 * abs(v), (i, v)
+    assert d["plant.momentum_residual"][i] < 1e-10, d["plant.momentum_residual"][i]
     # reported run at 2N
     assert d["plant.cells"][i] == 2 * d["cells"][i]
     # the paper's validity: eps C0 / (R0 alpha) <= 1 with C0 = pi_r n_F / zeta
@@ -47,15 +49,25 @@ for i in range(rows):
         assert abs(d["paper.velocity"][i] - vp) <= 1e-12 * abs(vp) + 1e-300, (i, vp)
     else:
         assert d["paper.velocity"][i] is None and d["paper.reason"][i]
+    # the relative error's floors: 1e-9 of the speed scale f0 omega / (k A_c E) and of the power
+    # scale f0 times that times the wavelengths on the body
+    v_scale = d["f0"][i] * d["omega"][i] / (d["k"][i] * d["area"][i] * d["youngs_modulus"][i])
+    waves = max(round(d["k"][i] * d["length"][i] / (2 * math.pi)), 1)
+    floor = {"velocity": 1e-9 * v_scale, "power": 1e-9 * d["f0"][i] * v_scale * waves}
     for model in ("paper", "improved"):
         for m in ("velocity", "power", "mileage", "max_stress"):
             p, q, e = d[f"{model}.{m}"][i], d[f"plant.{m}"][i], d[f"{model}.{m}.error"][i]
-            if p is None:
+            if m == "mileage":
+                if d[f"{model}.power"][i] is None or abs(d[f"{model}.power"][i]) <= floor["power"]:
+                    p = None
+                if abs(d["plant.power"][i]) <= floor["power"]:
+                    q = None
+            if p is None or q is None:
                 assert e is None
                 continue
-            want = 0.0 if p == q else (p - q) / abs(q)
+            want = 0.0 if p == q else (p - q) / max(abs(q), floor.get(m, 0.0))
             assert abs(e - want) <= 1e-12 * max(1.0, abs(want)), (model, m, i, e, want)
             checked += 1
-        e = d[f"{model}.stuck_fraction.error"][i]
-        assert e == d[f"{model}.stuck_fraction"][i] - d["plant.stuck_fraction"][i]
+        e, sf = d[f"{model}.stuck_fraction.error"][i], d[f"{model}.stuck_fraction"][i]
+        assert e == (None if sf is None else sf - d["plant.stuck_fraction"][i]), (model, i, e)
 print(f"ok: {rows} rows, {len(t.schema)} columns, {checked} errors checked")

@@ -140,13 +140,14 @@ fn results_do_not_depend_on_the_number_of_workers() {
     );
 }
 
-/// Twelve points of about equal cost.
+/// Twelve points of about equal cost (about 0.3 s each).
 const TWELVE: &str = r#"
 [set]
-numerics.cells = 256
-numerics.settle = 1.0
-numerics.t_end = 2.0
+numerics.cells = 1024
+numerics.settle = 2.0
+numerics.t_end = 3.0
 friction.eps = 0.5
+actuation.k = 25.132741228718345
 
 [[axes]]
 key = "actuation.alpha"
@@ -252,59 +253,43 @@ fn an_interrupted_sweep_keeps_its_finished_points_and_resumes_with_the_rest() {
 }
 
 #[test]
-fn plans_that_share_points_share_results_and_cells_is_an_axis() {
+fn plans_that_share_points_share_results_and_the_convergence_estimate_tracks_the_true_error() {
+    // eps = 0: the linear crawler, whose exact steady power is the paper's formula, so the
+    // paper's power error is the plant's true discretisation error; settle 3 s leaves a
+    // transient of exp(-15)
+    const BASE: &str = "[set]\nnumerics.settle = 3.0\nnumerics.t_end = 4.0\nfriction.eps = 0.0\nactuation.alpha = 0.7\n";
     let dir = tempfile::tempdir().unwrap();
     let a = write_plan(
         dir.path(),
         "a",
-        "[set]\nnumerics.settle = 1.0\nnumerics.t_end = 2.0\n[[axes]]\nkey = \"numerics.cells\"\nvalues = [16, 32]\n\
-         [evaluate]\nplant = true\nmodels = [\"paper\"]\n",
+        &format!("{BASE}[[axes]]\nkey = \"numerics.cells\"\nvalues = [32, 64]\n[evaluate]\nplant = true\nmodels = [\"paper\"]\n"),
     );
-    let o = sweep(
-        dir.path(),
-        &[
-            a.to_str().unwrap(),
-            "--store",
-            "store",
-            "--out",
-            "a.parquet",
-        ],
-    );
+    let o = sweep(dir.path(), &[a.to_str().unwrap(), "--store", "store", "--out", "a.parquet"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    // b reaches the point cells = 32 another way (a fixed setting, another name) and adds one
+    // b reaches the point cells = 64 again (under another plan name) and adds cells = 128
     let b = write_plan(
         dir.path(),
         "b",
-        "[set]\nnumerics.settle = 1.0\nnumerics.t_end = 2.0\n[[axes]]\nkey = \"numerics.cells\"\nvalues = [32, 64]\n\
-         [evaluate]\nplant = true\nmodels = [\"paper\"]\n",
+        &format!("{BASE}[[axes]]\nkey = \"numerics.cells\"\nvalues = [64, 128]\n[evaluate]\nplant = true\nmodels = [\"paper\"]\n"),
     );
-    let o = sweep(
-        dir.path(),
-        &[
-            b.to_str().unwrap(),
-            "--store",
-            "store",
-            "--out",
-            "b.parquet",
-        ],
-    );
+    let o = sweep(dir.path(), &[b.to_str().unwrap(), "--store", "store", "--out", "b.parquet"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("2 points, 1 stored, 1 to run"),
-        "{}",
-        stderr(&o)
-    );
-    // the convergence estimate is an estimate of the error: with the resolution doubled, the
-    // power's (second order, sliding) falls about fourfold
-    let t = read_parquet(&dir.path().join("b.parquet"));
-    let c = f64s(&t, "plant.power.conv_error");
-    let ratio = c[0].unwrap() / c[1].unwrap();
-    assert!((3.0..5.5).contains(&ratio), "error ratio {ratio} ({c:?})");
-    let ta = read_parquet(&dir.path().join("a.parquet"));
+    assert!(stderr(&o).contains("2 points, 1 stored, 1 to run"), "{}", stderr(&o));
+    let (ta, tb) = (read_parquet(&dir.path().join("a.parquet")), read_parquet(&dir.path().join("b.parquet")));
     assert_eq!(
         f64s(&ta, "plant.power")[1].unwrap().to_bits(),
-        f64s(&t, "plant.power")[0].unwrap().to_bits()
+        f64s(&tb, "plant.power")[0].unwrap().to_bits()
     );
+    // reported runs at 128 and 256 cells (same Courant number 0.757): second order, and the
+    // estimate |P(2N) - P(N)| / P(2N) is three times the true error of P(2N), as it must be
+    let truth: Vec<f64> = f64s(&tb, "paper.power.error").iter().map(|e| e.unwrap().abs()).collect();
+    let est: Vec<f64> = f64s(&tb, "plant.power.conv_error").iter().map(|e| e.unwrap()).collect();
+    let order = truth[0] / truth[1];
+    assert!((3.6..4.4).contains(&order), "true error ratio {order} ({truth:?})");
+    for i in 0..2 {
+        let r = est[i] / truth[i];
+        assert!((2.7..3.3).contains(&r), "estimate / true error = {r} at row {i} ({est:?} vs {truth:?})");
+    }
 }
 
 #[test]
