@@ -139,7 +139,7 @@ pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>
                 "{model} model: largest relative error of V, P, M and sigma against the plant"
             ),
             note: format!(
-                "max over the metrics; contours {}; {undefined}",
+                "max over the metrics that have an error (a body at rest has no mileage); contours {}; {undefined}",
                 level_note()
             ),
             panels: w,
@@ -161,7 +161,7 @@ pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>
         file: format!("{}-plant-convergence.png", plan.name),
         title: "plant: estimated discretisation error (N against 2N cells)".into(),
         note: format!(
-            "largest over the metrics of |value(2N) / value(N) - 1|; contours {}",
+            "largest over V, P, M and sigma of |value(2N) - value(N)| / |value(2N)|; contours {}",
             level_note()
         ),
         panels: &maps.convergence,
@@ -294,7 +294,7 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
         }
     }
     // colour bar
-    let bar = bar_area.margin(40, 50, 20, 70);
+    let bar = bar_area.margin(60, 70, 16, 60);
     let (bw, bh) = bar.dim_in_pixel();
     let steps = 200;
     for i in 0..steps {
@@ -319,13 +319,13 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
             ("sans-serif", 13).into_font(),
         ))?;
     }
-    bar.draw(&Text::new(
+    bar_area.draw(&Text::new(
         f.bar_label.to_string(),
-        (0, -24),
+        (16, 24),
         ("sans-serif", 13).into_font(),
     ))?;
     if matches!(f.scale, Scale::LogPercent { .. }) {
-        let y = bh as i32 + 8;
+        let y = bh as i32 + 14;
         bar.draw(&Rectangle::new([(0, y), (28, y + 14)], UNDEFINED.filled()))?;
         bar.draw(&Text::new(
             "undefined",

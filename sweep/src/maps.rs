@@ -4,11 +4,10 @@
 
 use std::collections::BTreeMap;
 
-use crate::evaluate::convergence::estimate;
 use crate::plan::{MapFigures, Plan};
 use crate::point::Point;
 use crate::record::Record;
-use crate::table::point_error;
+use crate::table::{conv_error, point_error};
 
 /// The metrics a map shows (those of them the plan keeps).
 pub const MAP_METRICS: [&str; 4] = ["velocity", "power", "mileage", "max_stress"];
@@ -120,17 +119,22 @@ impl Maps {
         self.x.values.len() * self.y.values.len()
     }
 
-    /// The largest |error| over the metrics of `model` (undefined if any metric is).
+    /// The largest |error| over the metrics of `model` that have one; undefined where the
+    /// model's formulas do not apply (or no metric has an error: a body at rest has no mileage).
     pub fn worst(&self, model: &str) -> Vec<Grid> {
         let n = self.nrows() * self.ncols();
         (0..n)
             .map(|panel| {
                 (0..self.cells())
                     .map(|i| {
-                        self.metrics.iter().try_fold(0.0f64, |acc, m| {
-                            let e = self.errors[&(model.to_string(), m.clone())][panel][i]?;
-                            Some(acc.max(e.abs()))
-                        })
+                        if self.valid[model][panel][i] != Some(1.0) {
+                            return None;
+                        }
+                        self.metrics
+                            .iter()
+                            .filter_map(|m| self.errors[&(model.to_string(), m.clone())][panel][i])
+                            .map(f64::abs)
+                            .reduce(f64::max)
                     })
                     .collect()
             })
@@ -228,7 +232,7 @@ impl Maps {
             stuck[panel][cell] = plant.run.metrics.stuck_fraction;
             convergence[panel][cell] = metrics
                 .iter()
-                .map(|m| estimate(plant, m))
+                .map(|m| conv_error(plant, m, p))
                 .try_fold(0.0f64, |acc, e| Some(acc.max(e?)));
             for (mi, model) in models.iter().enumerate() {
                 let Some(mr) = r.models.get(mi) else { continue };

@@ -49,11 +49,12 @@ for i in range(rows):
         assert abs(d["paper.velocity"][i] - vp) <= 1e-12 * abs(vp) + 1e-300, (i, vp)
     else:
         assert d["paper.velocity"][i] is None and d["paper.reason"][i]
-    # the relative error's floors: 1e-9 of the speed scale f0 omega / (k A_c E) and of the power
-    # scale f0 times that times the wavelengths on the body
+    # the relative error's floors: 1e-6 of the speed scale f0 omega / (k A_c E), of the power
+    # scale f0 times that times the wavelengths on the body, and of their ratio
     v_scale = d["f0"][i] * d["omega"][i] / (d["k"][i] * d["area"][i] * d["youngs_modulus"][i])
     waves = max(round(d["k"][i] * d["length"][i] / (2 * math.pi)), 1)
-    floor = {"velocity": 1e-9 * v_scale, "power": 1e-9 * d["f0"][i] * v_scale * waves}
+    p_scale = d["f0"][i] * v_scale * waves
+    floor = {"velocity": 1e-6 * v_scale, "power": 1e-6 * p_scale, "mileage": 1e-6 * v_scale / p_scale}
     for model in ("paper", "improved"):
         for m in ("velocity", "power", "mileage", "max_stress"):
             p, q, e = d[f"{model}.{m}"][i], d[f"plant.{m}"][i], d[f"{model}.{m}.error"][i]

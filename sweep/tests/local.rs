@@ -264,7 +264,16 @@ fn plans_that_share_points_share_results_and_the_convergence_estimate_tracks_the
         "a",
         &format!("{BASE}[[axes]]\nkey = \"numerics.cells\"\nvalues = [32, 64]\n[evaluate]\nplant = true\nmodels = [\"paper\"]\n"),
     );
-    let o = sweep(dir.path(), &[a.to_str().unwrap(), "--store", "store", "--out", "a.parquet"]);
+    let o = sweep(
+        dir.path(),
+        &[
+            a.to_str().unwrap(),
+            "--store",
+            "store",
+            "--out",
+            "a.parquet",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     // b reaches the point cells = 64 again (under another plan name) and adds cells = 128
     let b = write_plan(
@@ -272,23 +281,51 @@ fn plans_that_share_points_share_results_and_the_convergence_estimate_tracks_the
         "b",
         &format!("{BASE}[[axes]]\nkey = \"numerics.cells\"\nvalues = [64, 128]\n[evaluate]\nplant = true\nmodels = [\"paper\"]\n"),
     );
-    let o = sweep(dir.path(), &[b.to_str().unwrap(), "--store", "store", "--out", "b.parquet"]);
+    let o = sweep(
+        dir.path(),
+        &[
+            b.to_str().unwrap(),
+            "--store",
+            "store",
+            "--out",
+            "b.parquet",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("2 points, 1 stored, 1 to run"), "{}", stderr(&o));
-    let (ta, tb) = (read_parquet(&dir.path().join("a.parquet")), read_parquet(&dir.path().join("b.parquet")));
+    assert!(
+        stderr(&o).contains("2 points, 1 stored, 1 to run"),
+        "{}",
+        stderr(&o)
+    );
+    let (ta, tb) = (
+        read_parquet(&dir.path().join("a.parquet")),
+        read_parquet(&dir.path().join("b.parquet")),
+    );
     assert_eq!(
         f64s(&ta, "plant.power")[1].unwrap().to_bits(),
         f64s(&tb, "plant.power")[0].unwrap().to_bits()
     );
     // reported runs at 128 and 256 cells (same Courant number 0.757): second order, and the
     // estimate |P(2N) - P(N)| / P(2N) is three times the true error of P(2N), as it must be
-    let truth: Vec<f64> = f64s(&tb, "paper.power.error").iter().map(|e| e.unwrap().abs()).collect();
-    let est: Vec<f64> = f64s(&tb, "plant.power.conv_error").iter().map(|e| e.unwrap()).collect();
+    let truth: Vec<f64> = f64s(&tb, "paper.power.error")
+        .iter()
+        .map(|e| e.unwrap().abs())
+        .collect();
+    let est: Vec<f64> = f64s(&tb, "plant.power.conv_error")
+        .iter()
+        .map(|e| e.unwrap())
+        .collect();
     let order = truth[0] / truth[1];
-    assert!((3.6..4.4).contains(&order), "true error ratio {order} ({truth:?})");
+    assert!(
+        (3.6..4.4).contains(&order),
+        "true error ratio {order} ({truth:?})"
+    );
     for i in 0..2 {
         let r = est[i] / truth[i];
-        assert!((2.7..3.3).contains(&r), "estimate / true error = {r} at row {i} ({est:?} vs {truth:?})");
+        assert!(
+            (2.7..3.3).contains(&r),
+            "estimate / true error = {r} at row {i} ({est:?} vs {truth:?})"
+        );
     }
 }
 

@@ -225,14 +225,49 @@ impl Cluster {
         cluster
     }
 
-    /// `crawler-sweep ARGS` in `dir` against this cluster.
+    /// `crawler-sweep ARGS` in `dir` against this cluster, killed (and the test failed, with the
+    /// daemons' logs) if it takes more than three minutes.
     fn sweep(&self, dir: &Path, args: &[&str]) -> Output {
-        Command::new(sweep_bin())
+        let mut child = Command::new(sweep_bin())
             .args(args)
             .current_dir(dir)
             .env("SLURM_CONF", &self.conf)
-            .output()
-            .unwrap()
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let (mut out, mut err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
+        let reader = std::thread::spawn(move || {
+            let mut b = Vec::new();
+            std::io::Read::read_to_end(&mut out, &mut b).unwrap();
+            b
+        });
+        let err_reader = std::thread::spawn(move || {
+            let mut b = Vec::new();
+            std::io::Read::read_to_end(&mut err, &mut b).unwrap();
+            b
+        });
+        let deadline = Instant::now() + Duration::from_secs(180);
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if Instant::now() > deadline {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!(
+                    "crawler-sweep {args:?} did not finish within 180 s:\n{}\n{}",
+                    String::from_utf8_lossy(&err_reader.join().unwrap()),
+                    self.logs()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        Output {
+            status,
+            stdout: reader.join().unwrap(),
+            stderr: err_reader.join().unwrap(),
+        }
     }
 
     fn wait_idle_queue(&self, job: &str) {

@@ -69,29 +69,3 @@ pub fn plant_with_estimate(
         coarse: Some(plant_run(&coarse)),
     })
 }
-
-/// The estimated discretisation error of the reported value of metric `name`: relative,
-/// `|fine - coarse| / |fine|` (for the stuck fraction and the friction selection, which are
-/// shares, the absolute difference). It bounds the finer run's error when the scheme converges
-/// at first order or better. `None` without a coarse run or a value.
-pub fn estimate(result: &PlantResult, name: &str) -> Option<f64> {
-    let coarse = result.coarse.as_ref()?;
-    let f = result.run.metrics.get(name)?;
-    let c = coarse.metrics.get(name)?;
-    let d = (f - c).abs();
-    if absolute(name) {
-        return Some(d);
-    }
-    if f == 0.0 {
-        return (d == 0.0).then_some(0.0);
-    }
-    finite(d / f.abs())
-}
-
-/// Metrics whose errors are absolute differences (shares), not relative ones.
-pub fn absolute(name: &str) -> bool {
-    matches!(
-        name,
-        "stuck_fraction" | "mean_friction_selection" | "episodes_per_node_per_period"
-    )
-}
