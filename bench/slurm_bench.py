@@ -133,7 +133,7 @@ def timed(args, cwd, env=None):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=120)
-    ap.add_argument("--cells", type=int, default=256)
+    ap.add_argument("--cells", type=int, default=1024)
     ap.add_argument("--chunks", default="5,20,60")
     a = ap.parse_args()
     print("building crawler-sweep (cargo build --release -p crawler-sweep) ...", file=sys.stderr)

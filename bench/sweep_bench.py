@@ -6,7 +6,7 @@ Builds crawler-sweep (release) first, then runs the same plan of short plant poi
 and prints the median wall times and their ratio. With --validity it also times the whole
 validity map (plans/validity.toml) into a fresh store, as the README's figure.
 
-    .venv/bin/python bench/sweep_bench.py [--trials 3] [--points 24] [--validity]
+    .venv/bin/python bench/sweep_bench.py [--trials 3] [--points 40] [--validity]
 """
 import argparse
 import os
@@ -53,8 +53,8 @@ def run(args, cwd, figures=False):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--trials", type=int, default=3)
-    ap.add_argument("--points", type=int, default=24)
-    ap.add_argument("--cells", type=int, default=384)
+    ap.add_argument("--points", type=int, default=40)
+    ap.add_argument("--cells", type=int, default=1024)
     ap.add_argument("--validity", action="store_true", help="also time plans/validity.toml")
     a = ap.parse_args()
     build()

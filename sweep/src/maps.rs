@@ -99,7 +99,7 @@ pub struct Maps {
     pub valid: BTreeMap<String, Vec<Grid>>,
     /// panel -> the plant's stuck fraction.
     pub stuck: Vec<Grid>,
-    /// panel -> the largest estimated discretisation error of the plant over the metrics.
+    /// panel -> the largest estimated discretisation error of the plant over the metrics that have one.
     pub convergence: Vec<Grid>,
 }
 
@@ -230,10 +230,11 @@ impl Maps {
             let cell = iy * nx + ix;
             let Some(plant) = &r.plant else { continue };
             stuck[panel][cell] = plant.run.metrics.stuck_fraction;
+            // the largest estimate among the metrics that have one (a body at rest has no mileage)
             convergence[panel][cell] = metrics
                 .iter()
-                .map(|m| conv_error(plant, m, p))
-                .try_fold(0.0f64, |acc, e| Some(acc.max(e?)));
+                .filter_map(|m| conv_error(plant, m, p))
+                .reduce(f64::max);
             for (mi, model) in models.iter().enumerate() {
                 let Some(mr) = r.models.get(mi) else { continue };
                 valid.get_mut(model).expect("a model")[panel][cell] =

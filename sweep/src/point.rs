@@ -69,7 +69,7 @@ pub enum PointError {
         /// The point's axis values.
         at: String,
         /// The scenario's own message (names the field, the value and what is allowed).
-        cause: crawler_plant::scenario::ScenarioError,
+        cause: Box<crawler_plant::scenario::ScenarioError>,
     },
 }
 
@@ -169,7 +169,7 @@ pub fn resolve_one(
                 plan: plan.origin.clone(),
                 index,
                 at: at.clone(),
-                cause,
+                cause: Box::new(cause),
             }
         })?;
     let id = point_id(&scenario, &plan.evaluate);
@@ -264,9 +264,8 @@ mod tests {
         assert_eq!(ids.len(), 4);
         // the same physics reached another way (omega instead of alpha, another name) shares the id
         let omega = pts[3].scenario.wave.omega;
-        let q = plan(&format!(
-            "name = \"other\"\n[set]\nname = {{ x = 1 }}\n[evaluate]\nmodels = [\"paper\"]\n"
-        ));
+        let q =
+            plan("name = \"other\"\n[set]\nname = { x = 1 }\n[evaluate]\nmodels = [\"paper\"]\n");
         assert!(resolve(&q).is_err(), "a key through a value is refused");
         let q = plan(&format!(
             "name = \"other\"\n[set]\nnumerics.t_end = 7.0\nfriction.eps = 1.0\nactuation.omega = {omega:?}\n[evaluate]\nmodels = [\"paper\"]\n"
