@@ -11,7 +11,7 @@ chunk sizes (each into a fresh store, waiting for the job), stops the cluster, a
 
 as a share of the plant time per point (the mean of the points' own wall times).
 
-    .venv/bin/python bench/slurm_bench.py [--points 120] [--chunks 5,20,60]
+    .venv/bin/python bench/slurm_bench.py [--points 600] [--chunks 5,25,100]
 """
 import argparse
 import os
@@ -132,9 +132,9 @@ def timed(args, cwd, env=None):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--points", type=int, default=120)
+    ap.add_argument("--points", type=int, default=600)
     ap.add_argument("--cells", type=int, default=1024)
-    ap.add_argument("--chunks", default="5,20,60")
+    ap.add_argument("--chunks", default="5,25,100")
     a = ap.parse_args()
     print("building crawler-sweep (cargo build --release -p crawler-sweep) ...", file=sys.stderr)
     subprocess.run(["cargo", "build", "--release", "-p", "crawler-sweep"], cwd=ROOT, check=True)
