@@ -213,11 +213,11 @@ pub fn resolve(plan: &Plan) -> Result<Vec<Point>, PointError> {
 /// Rough cost of a plant run of `s`, in cell updates (cells x internal steps), for scheduling
 /// the longest points first and for the progress bar.
 pub fn plant_cost(s: &Scenario) -> f64 {
-    let p = &s.plant;
-    let n = p.numerics.cells as f64;
-    let dx = p.length / n;
-    let dt = p.numerics.courant.max(1e-3) * dx / p.body.wave_speed();
-    n * (s.t_end / dt.min(p.numerics.step))
+    let n = s.plant.numerics.cells as f64;
+    match s.plant.discretisation() {
+        Ok(d) => n * (s.t_end / d.dt),
+        Err(_) => n * n,
+    }
 }
 
 /// Rough cost of evaluating `point` as `evaluate` (plant cell updates; models count as one

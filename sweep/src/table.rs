@@ -254,9 +254,17 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
         ("courant", "1", "upper bound of c dt / dx", |p| {
             p.scenario.plant.numerics.courant
         }),
-        ("step", "s", "communication step H", |p| {
-            p.scenario.plant.numerics.step
-        }),
+        (
+            "step",
+            "s",
+            "communication step H (the requested one rounded to whole internal steps)",
+            |p| {
+                p.scenario
+                    .plant
+                    .discretisation()
+                    .map_or(f64::NAN, |d| d.step)
+            },
+        ),
         ("t_end", "s", "end time", |p| p.scenario.t_end),
         ("settle", "s", "transient excluded from the metrics", |p| {
             p.scenario.plant.numerics.settle

@@ -8,10 +8,11 @@ use std::time::{Duration, Instant};
 
 use common::*;
 
-/// Four points: sliding and sticking, off and at resonance (k = 2 pi, one wavelength, coarse).
+/// Four points: sliding and sticking, off and at resonance (k = 2 pi, one wavelength, coarse:
+/// 64 and 128 cells).
 const FOUR: &str = r#"
 [set]
-numerics.cells = 32
+numerics.cells = 64
 numerics.settle = 1.5
 numerics.t_end = 3.0
 

@@ -11,10 +11,10 @@ use crawler_plant::simulate::{simulate, Report, SimulateOptions};
 use crate::record::{finite, Metrics, PlantResult, PlantRun};
 
 /// Options of the plant runs of a sweep: no progress bar, episodes counted but not listed.
-pub fn run_options() -> SimulateOptions {
+pub fn run_options() -> SimulateOptions<'static> {
     SimulateOptions {
         max_episodes: 0,
-        progress: false,
+        progress: None,
     }
 }
 

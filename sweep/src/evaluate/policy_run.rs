@@ -19,13 +19,16 @@ pub fn run_policy(scenario: &Scenario, spec: &PolicySpec) -> Result<PolicyResult
     let mut policy =
         policies::build(&spec.name, &ctx).map_err(|e| format!("policy {}: {e:#}", spec.name))?;
     let err = |e: &dyn std::fmt::Display| format!("policy {} on the plant: {e}", spec.name);
-    let mut slave = Slave::instantiate("sweep", scenario.plant).map_err(|e| err(&e))?;
+    let mut slave = Slave::instantiate("sweep", scenario.plant.clone()).map_err(|e| err(&e))?;
     slave
         .enter_initialization_mode(0.0, None)
         .map_err(|e| err(&e))?;
     slave.exit_initialization_mode().map_err(|e| err(&e))?;
-    let h = scenario.plant.numerics.step;
-    let steps = (scenario.t_end / h).round().max(1.0) as u64;
+    // the plant's communication step (the requested one rounded to whole internal steps), as the
+    // co-simulation node runs it
+    let disc = scenario.plant.discretisation().map_err(|e| err(&e))?;
+    let h = slave.plant().step_length();
+    let steps = disc.steps_until(scenario.t_end);
     let mut log = EpisodeLog::new(0);
     let mut last_wave = None;
     for n in 0..steps {
