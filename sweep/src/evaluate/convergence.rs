@@ -1,11 +1,11 @@
 //! The plant at a point with a discretisation-error estimate: the point at its N cells and again
-//! at 2N; the finer run is reported and the difference estimates its error.
+//! at 2N (the plant library's convergence check); the finer run is reported and the difference
+//! estimates its error ([`crate::table::conv_error`]: `|m(N) - m(2N)|`, which bounds the 2N run's
+//! error at first order or better; the library's `2 |m(N) - m(2N)|` is the N run's).
 //!
-//! This is the one place that decides how convergence is estimated. When the plant library
-//! offers its own estimate (a `crawler_plant::convergence` module is planned), only
-//! [`plant_with_estimate`] changes.
+//! This is the one place that decides how the plant is run at a point.
 
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_plant::scenario::Scenario;
 use crawler_plant::simulate::{simulate, Report, SimulateOptions};
 
 use crate::record::{finite, Metrics, PlantResult, PlantRun};
@@ -40,32 +40,22 @@ pub fn plant_run(r: &Report) -> PlantRun {
     }
 }
 
-/// Runs the plant of `scenario`; with `refine`, also at twice its cells (re-resolved from the
-/// point's TOML `toml`, so every rule of the scenario format applies to the finer grid too) and
-/// reports the finer run with the coarser one beside it.
-pub fn plant_with_estimate(
-    scenario: &Scenario,
-    toml: &str,
-    refine: bool,
-) -> Result<PlantResult, String> {
-    let coarse = simulate(scenario, run_options())
-        .map_err(|e| format!("plant at N = {}: {e}", scenario.plant.numerics.cells))?;
+/// Runs the plant of `scenario`; with `refine`, also at twice its cells (the plant library's
+/// [`crawler_plant::convergence::estimate`]: the same scenario with `2N` cells, so `dx` and `dt`
+/// halve at the same Courant number) and reports the finer run with the coarser one beside it.
+pub fn plant_with_estimate(scenario: &Scenario, refine: bool) -> Result<PlantResult, String> {
+    let n = scenario.plant.numerics.cells;
     if !refine {
+        let r = simulate(scenario, run_options()).map_err(|e| format!("plant at N = {n}: {e}"))?;
         return Ok(PlantResult {
-            run: plant_run(&coarse),
+            run: plant_run(&r),
             coarse: None,
         });
     }
-    let n2 = 2 * scenario.plant.numerics.cells as i64;
-    let overrides = Overrides {
-        cells: Some(n2),
-        ..Overrides::default()
-    };
-    let finer = Scenario::from_toml(toml, "<the point at twice the cells>", &overrides)
-        .map_err(|e| format!("the convergence check's grid: {e}"))?;
-    let fine = simulate(&finer, run_options()).map_err(|e| format!("plant at 2N = {n2}: {e}"))?;
+    let c = crawler_plant::convergence::estimate(scenario, 0, None)
+        .map_err(|e| format!("plant at N = {n} and 2N = {}: {e}", 2 * n))?;
     Ok(PlantResult {
-        run: plant_run(&fine),
-        coarse: Some(plant_run(&coarse)),
+        run: plant_run(&c.fine),
+        coarse: Some(plant_run(&c.coarse)),
     })
 }

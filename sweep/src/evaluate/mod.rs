@@ -74,7 +74,6 @@ pub fn evaluate(point: &Point, spec: &Evaluate) -> Record {
         if spec.plant {
             rec.plant = Some(convergence::plant_with_estimate(
                 &point.scenario,
-                &point.toml,
                 spec.convergence,
             )?);
         }
