@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 if [ ! -x .venv/bin/python ]; then
   python3 -m venv .venv
 fi
-if ! .venv/bin/python -c 'import zenoh, msgpack, numpy' 2>/dev/null || [ requirements.txt -nt .venv/.installed ]; then
+if ! .venv/bin/python -c 'import zenoh, msgpack, numpy, pyarrow' 2>/dev/null || [ requirements.txt -nt .venv/.installed ]; then
   .venv/bin/pip install --quiet --disable-pip-version-check -r requirements.txt
   touch .venv/.installed
 fi

@@ -54,7 +54,7 @@ type Sweep<'a> = (
 );
 
 /// Registers a TrueType font for plot text (plotters draws text with it).
-fn register_font() -> anyhow::Result<()> {
+pub fn register_font() -> anyhow::Result<()> {
     let path = FONT_PATHS
         .iter()
         .find(|p| Path::new(p).is_file())

@@ -30,6 +30,13 @@ struct Cli {
 enum Cmd {
     /// Run plant, controller and bridge on loopback and leave a Rerun recording.
     Run(RunArgs),
+    /// Run a sweep plan on all cores or on Slurm (`crawler sweep --help`; runs `crawler-sweep`).
+    #[command(disable_help_flag = true)]
+    Sweep {
+        /// Arguments of `crawler-sweep` (a plan file, `collect PLAN`, options).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
 }
 
 #[derive(Args)]
@@ -65,8 +72,11 @@ struct RunArgs {
 }
 
 fn main() -> ExitCode {
-    let Cmd::Run(a) = Cli::parse().command;
-    match run(a) {
+    let result = match Cli::parse().command {
+        Cmd::Run(a) => run(a),
+        Cmd::Sweep { args } => sweep(&args),
+    };
+    match result {
         Ok(code) => code,
         Err(e) => {
             eprintln!("crawler: error: {e:#}");
@@ -76,6 +86,44 @@ fn main() -> ExitCode {
 }
 
 const BINARIES: [&str; 3] = ["crawler-plant", "crawler-controller", "crawler-bridge"];
+
+/// `crawler sweep ARGS`: replaced by the sibling `crawler-sweep ARGS` (same signals, exit code).
+fn sweep(args: &[String]) -> anyhow::Result<ExitCode> {
+    let exe = std::env::current_exe()?;
+    let bin = exe
+        .parent()
+        .map(|d| d.join("crawler-sweep"))
+        .unwrap_or_default();
+    if !bin.is_file() {
+        // through `cargo run`: build it first, as `run` does for its binaries
+        let Ok(cargo) = std::env::var("CARGO") else {
+            anyhow::bail!(
+                "crawler-sweep not found next to {}; build it with: cargo build --release -p crawler-sweep",
+                exe.display()
+            );
+        };
+        eprintln!("crawler: building crawler-sweep (first run only) ...");
+        let mut build = Command::new(cargo);
+        build.args(["build", "--bin", "crawler-sweep", "-p", "crawler-sweep"]);
+        if exe.parent().is_some_and(|d| d.ends_with("release")) {
+            build.arg("--release");
+        }
+        anyhow::ensure!(build.status()?.success(), "building crawler-sweep failed");
+    }
+    let mut cmd = Command::new(&bin);
+    cmd.args(args);
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        let e = cmd.exec();
+        anyhow::bail!("cannot run {}: {e}", bin.display());
+    }
+    #[cfg(not(unix))]
+    {
+        let status = cmd.status()?;
+        Ok(ExitCode::from(status.code().unwrap_or(1) as u8))
+    }
+}
 
 /// The directory of the sibling binaries, building them first when run through `cargo run`.
 fn binaries() -> anyhow::Result<PathBuf> {

@@ -1,0 +1,807 @@
+//! Sweep plans (TOML): a base scenario, fixed settings, axes of values, what to evaluate at each
+//! point and which metrics to keep.
+//!
+//! Every key that names a scenario field is a dotted path into the scenario's TOML table
+//! (`friction.eps`, `actuation.alpha`, `numerics.cells`, ...), so any field the scenario format
+//! has now or gains later can be swept; the values are checked by the scenario's own parser when
+//! the points are resolved ([`crate::point`]). See `plans/validity.toml` for a complete plan.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+use crawler_controller::controller::PolicyOptions;
+use crawler_controller::optimizer::ModelChoice;
+
+/// Why a plan could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// The file could not be read.
+    #[error("cannot read plan {path}: {cause}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        cause: std::io::Error,
+    },
+    /// Not valid TOML, an unknown key or a wrong type (the message gives the line).
+    #[error("plan {origin}: {message}")]
+    Syntax {
+        /// The file name.
+        origin: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// A value that is not allowed.
+    #[error("plan {origin}: invalid {field} = {value}: allowed {allowed}")]
+    Invalid {
+        /// The file name.
+        origin: String,
+        /// The plan field at fault.
+        field: String,
+        /// The offending value.
+        value: String,
+        /// What is allowed.
+        allowed: String,
+    },
+}
+
+/// The metrics a model or the plant reports; `metrics` in a plan picks among them.
+pub const METRICS: [&str; 8] = [
+    "velocity",
+    "power",
+    "mileage",
+    "max_stress",
+    "max_strain",
+    "stuck_fraction",
+    "mean_friction_selection",
+    "episodes_per_node_per_period",
+];
+
+/// The models a plan may evaluate.
+pub const MODELS: [&str; 2] = ["paper", "improved"];
+
+/// Largest number of points in one plan (a guard against a typo making 10^9 points).
+pub const MAX_POINTS: usize = 1_000_000;
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlan {
+    name: String,
+    #[serde(default)]
+    description: String,
+    scenario: Option<String>,
+    #[serde(default)]
+    metrics: Option<Vec<String>>,
+    #[serde(default)]
+    set: toml::Table,
+    #[serde(default)]
+    axes: Vec<RawAxis>,
+    evaluate: RawEvaluate,
+    figures: Option<MapFigures>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAxis {
+    key: Option<String>,
+    keys: Option<Vec<String>>,
+    values: Option<Vec<toml::Value>>,
+    linspace: Option<Range>,
+    logspace: Option<Range>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Range {
+    start: f64,
+    stop: f64,
+    num: i64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawEvaluate {
+    #[serde(default)]
+    plant: bool,
+    #[serde(default = "yes")]
+    convergence: bool,
+    #[serde(default)]
+    models: Vec<String>,
+    policy: Option<RawPolicy>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPolicy {
+    name: String,
+    f0: Option<f64>,
+    k: Option<f64>,
+    omega: Option<f64>,
+    alpha: Option<f64>,
+    #[serde(default)]
+    sweep: Vec<f64>,
+    dwell: Option<f64>,
+    model: Option<String>,
+    grid: Option<i64>,
+    certify: Option<bool>,
+    margin: Option<f64>,
+}
+
+/// One axis: one or more scenario keys that change together, and their values.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Axis {
+    /// Dotted scenario keys (one, or several zipped together).
+    pub keys: Vec<String>,
+    /// For each position on the axis, one value per key.
+    pub values: Vec<Vec<toml::Value>>,
+}
+
+/// A co-simulated policy, evaluated in process (bit-identical to the co-simulation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PolicySpec {
+    /// Registered policy name (`crawler-controller policies`).
+    pub name: String,
+    /// Amplitude, N.
+    pub f0: Option<f64>,
+    /// Wave number, rad/m.
+    pub k: Option<f64>,
+    /// Angular frequency, rad/s.
+    pub omega: Option<f64>,
+    /// omega / omega_n.
+    pub alpha: Option<f64>,
+    /// `sweep` policy: alpha values.
+    pub sweep: Vec<f64>,
+    /// `sweep` policy: seconds per value.
+    pub dwell: Option<f64>,
+    /// `optimal` policy: `paper` or `improved`.
+    pub model: Option<String>,
+    /// `optimal` policy: grid points per axis.
+    pub grid: Option<usize>,
+    /// `optimal` policy: certify on the plant first.
+    pub certify: bool,
+    /// `optimal` policy: certification margin.
+    pub margin: f64,
+}
+
+impl PolicySpec {
+    /// The controller options of this spec.
+    pub fn options(&self) -> PolicyOptions {
+        PolicyOptions {
+            f0: self.f0,
+            k: self.k,
+            omega: self.omega,
+            alpha: self.alpha,
+            sweep: self.sweep.clone(),
+            dwell: self.dwell,
+            model: self
+                .model
+                .as_deref()
+                .map(|m| ModelChoice::parse(m).expect("validated when the plan was loaded")),
+            grid: self.grid,
+            certify: self.certify,
+            margin: self.margin,
+        }
+    }
+}
+
+/// What is evaluated at every point. It is part of each point's id.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Evaluate {
+    /// Run the in-process plant under the scenario's wave.
+    pub plant: bool,
+    /// Also run the plant at twice the cells for a discretisation-error estimate (the reported
+    /// plant values are those of the finer run).
+    pub convergence: bool,
+    /// Models (`paper`, `improved`), in a fixed order.
+    pub models: Vec<String>,
+    /// A policy run in closed loop with the plant.
+    pub policy: Option<PolicySpec>,
+}
+
+/// The heat-map figures of a plan: a grid of panels, one heat map per panel.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapFigures {
+    /// Axis key on the horizontal axis of each panel.
+    pub x: String,
+    /// Axis key on the vertical axis of each panel.
+    pub y: String,
+    /// Axis key that changes from one row of panels to the next (optional).
+    pub rows: Option<String>,
+    /// Axis key that changes from one column of panels to the next (optional).
+    pub columns: Option<String>,
+}
+
+/// A validated plan.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Short name: names the output files.
+    pub name: String,
+    /// One line of description.
+    pub description: String,
+    /// The plan file (for messages).
+    pub origin: String,
+    /// The base scenario's TOML text.
+    pub base_toml: String,
+    /// Where the base scenario came from (for messages).
+    pub base_origin: String,
+    /// Fixed settings applied to every point, dotted key -> value, in file order.
+    pub set: Vec<(String, toml::Value)>,
+    /// The axes, outermost first (the last axis changes fastest).
+    pub axes: Vec<Axis>,
+    /// What to evaluate.
+    pub evaluate: Evaluate,
+    /// The metrics kept in the results.
+    pub metrics: Vec<String>,
+    /// Figures to draw, if any.
+    pub figures: Option<MapFigures>,
+}
+
+impl Plan {
+    /// Loads a plan file; a relative `scenario` path is taken relative to the plan's folder.
+    pub fn from_file(path: &Path) -> Result<Self, PlanError> {
+        let text = std::fs::read_to_string(path).map_err(|cause| PlanError::Io {
+            path: path.display().to_string(),
+            cause,
+        })?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::from_toml(&text, &path.display().to_string(), &dir)
+    }
+
+    /// Parses a plan; `dir` resolves a relative `scenario` path. Without `scenario` the base is
+    /// the paper's scenario.
+    pub fn from_toml(text: &str, origin: &str, dir: &Path) -> Result<Self, PlanError> {
+        let raw: RawPlan = toml::from_str(text).map_err(|e| PlanError::Syntax {
+            origin: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        let bad = |field: &str, value: &dyn std::fmt::Display, allowed: &str| PlanError::Invalid {
+            origin: origin.to_string(),
+            field: field.to_string(),
+            value: value.to_string(),
+            allowed: allowed.to_string(),
+        };
+        if raw.name.is_empty()
+            || !raw
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(bad(
+                "name",
+                &format!("{:?}", raw.name),
+                "a non-empty name of ASCII letters, digits, '-' and '_' (it names the output files)",
+            ));
+        }
+        let (base_toml, base_origin) = match &raw.scenario {
+            Some(p) => {
+                let path: PathBuf = dir.join(p);
+                let text = std::fs::read_to_string(&path).map_err(|cause| {
+                    bad(
+                        "scenario",
+                        &format!("{p:?}"),
+                        &format!(
+                            "a readable scenario file (relative to the plan's folder); reading {} failed: {cause}",
+                            path.display()
+                        ),
+                    )
+                })?;
+                (text, path.display().to_string())
+            }
+            None => (
+                crawler_plant::scenario::PAPER_TOML.to_string(),
+                "<embedded paper.toml>".to_string(),
+            ),
+        };
+        let mut set = Vec::new();
+        flatten("", &raw.set, &mut set);
+        for (k, _) in &set {
+            check_key(k).map_err(|why| bad(&format!("set.{k:?}"), k, &why))?;
+        }
+
+        let mut axes = Vec::new();
+        let mut seen: Vec<String> = set.iter().map(|(k, _)| k.clone()).collect();
+        for (i, a) in raw.axes.iter().enumerate() {
+            let field = format!("axes[{i}]");
+            let keys = match (&a.key, &a.keys) {
+                (Some(k), None) => vec![k.clone()],
+                (None, Some(ks)) if !ks.is_empty() => ks.clone(),
+                _ => return Err(bad(
+                    &field,
+                    &"key/keys",
+                    "exactly one of key = \"section.field\" or keys = [\"...\", ...] (non-empty)",
+                )),
+            };
+            for k in &keys {
+                check_key(k).map_err(|why| bad(&format!("{field}.key"), k, &why))?;
+                if seen.contains(k) {
+                    return Err(bad(
+                        &format!("{field}.key"),
+                        k,
+                        "a key that no other axis and no [set] entry gives",
+                    ));
+                }
+                seen.push(k.clone());
+            }
+            let given = [
+                a.values.is_some(),
+                a.linspace.is_some(),
+                a.logspace.is_some(),
+            ];
+            if given.iter().filter(|g| **g).count() != 1 {
+                return Err(bad(
+                    &field,
+                    &"values/linspace/logspace",
+                    "exactly one of values = [...], linspace = { start, stop, num }, logspace = { start, stop, num }",
+                ));
+            }
+            let values: Vec<Vec<toml::Value>> = if let Some(v) = &a.values {
+                if v.is_empty() {
+                    return Err(bad(&format!("{field}.values"), &"[]", "at least one value"));
+                }
+                if keys.len() == 1 {
+                    v.iter().map(|x| vec![x.clone()]).collect()
+                } else {
+                    let mut out = Vec::new();
+                    for (j, x) in v.iter().enumerate() {
+                        match x {
+                            toml::Value::Array(t) if t.len() == keys.len() => out.push(t.clone()),
+                            _ => {
+                                return Err(bad(
+                                    &format!("{field}.values[{j}]"),
+                                    x,
+                                    &format!(
+                                        "an array of {} values, one for each of keys = {keys:?}",
+                                        keys.len()
+                                    ),
+                                ))
+                            }
+                        }
+                    }
+                    out
+                }
+            } else {
+                if keys.len() != 1 {
+                    return Err(bad(
+                        &field,
+                        &"linspace/logspace with several keys",
+                        "values = [[...], ...] for zipped keys",
+                    ));
+                }
+                let (r, log, what) = match (&a.linspace, &a.logspace) {
+                    (Some(r), _) => (*r, false, "linspace"),
+                    (_, Some(r)) => (*r, true, "logspace"),
+                    _ => unreachable!("one of them is given"),
+                };
+                let f = format!("{field}.{what}");
+                spaced(r, log)
+                    .map_err(|(sub, v, why)| bad(&format!("{f}.{sub}"), &v, &why))?
+                    .into_iter()
+                    .map(|x| vec![toml::Value::Float(x)])
+                    .collect()
+            };
+            for (j, row) in values.iter().enumerate() {
+                for (k, v) in keys.iter().zip(row) {
+                    if matches!(
+                        v,
+                        toml::Value::Array(_) | toml::Value::Table(_) | toml::Value::Datetime(_)
+                    ) {
+                        return Err(bad(
+                            &format!("{field}.values[{j}]"),
+                            v,
+                            &format!("a number, string or boolean for {k}"),
+                        ));
+                    }
+                }
+            }
+            column_type(&keys, &values)
+                .map_err(|(k, why)| bad(&format!("{field} ({k})"), &"values", &why))?;
+            axes.push(Axis { keys, values });
+        }
+        let count = axes
+            .iter()
+            .try_fold(1usize, |n, a| n.checked_mul(a.values.len()));
+        match count {
+            Some(n) if n <= MAX_POINTS => {}
+            _ => {
+                return Err(bad(
+                    "axes",
+                    &"the product of the axes' lengths",
+                    &format!("at most {MAX_POINTS} points"),
+                ))
+            }
+        }
+
+        let e = &raw.evaluate;
+        let mut models = Vec::new();
+        for m in MODELS {
+            if e.models.iter().any(|x| x == m) {
+                models.push(m.to_string());
+            }
+        }
+        for m in &e.models {
+            if !MODELS.contains(&m.as_str()) {
+                return Err(bad("evaluate.models", m, &format!("a list of {MODELS:?}")));
+            }
+        }
+        if models.len() != e.models.len() {
+            return Err(bad(
+                "evaluate.models",
+                &format!("{:?}", e.models),
+                "each model at most once",
+            ));
+        }
+        let policy = match &e.policy {
+            None => None,
+            Some(p) => {
+                let known: Vec<&str> = crawler_controller::policies::REGISTRY
+                    .iter()
+                    .map(|(n, _, _)| *n)
+                    .collect();
+                if !known.contains(&p.name.as_str()) {
+                    return Err(bad(
+                        "evaluate.policy.name",
+                        &p.name,
+                        &format!("one of {known:?}"),
+                    ));
+                }
+                if let Some(m) = &p.model {
+                    ModelChoice::parse(m).map_err(|why| bad("evaluate.policy.model", m, &why))?;
+                }
+                let grid = match p.grid {
+                    None => None,
+                    Some(g) if (2..=4096).contains(&g) => Some(g as usize),
+                    Some(g) => return Err(bad("evaluate.policy.grid", &g, "2 <= grid <= 4096")),
+                };
+                let margin = p.margin.unwrap_or(PolicyOptions::default().margin);
+                if !(margin.is_finite() && (0.0..0.5).contains(&margin)) {
+                    return Err(bad("evaluate.policy.margin", &margin, "0 <= margin < 0.5"));
+                }
+                for (f, v) in [
+                    ("f0", p.f0),
+                    ("k", p.k),
+                    ("omega", p.omega),
+                    ("alpha", p.alpha),
+                    ("dwell", p.dwell),
+                ] {
+                    if let Some(x) = v {
+                        if !(x.is_finite() && (x > 0.0 || (f == "f0" && x == 0.0))) {
+                            return Err(bad(
+                                &format!("evaluate.policy.{f}"),
+                                &x,
+                                "a finite number > 0 (f0 >= 0)",
+                            ));
+                        }
+                    }
+                }
+                if p.omega.is_some() && p.alpha.is_some() {
+                    return Err(bad(
+                        "evaluate.policy",
+                        &"omega and alpha",
+                        "at most one of them",
+                    ));
+                }
+                if let Some(x) = p.sweep.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+                    return Err(bad("evaluate.policy.sweep", x, "finite alpha values > 0"));
+                }
+                Some(PolicySpec {
+                    name: p.name.clone(),
+                    f0: p.f0,
+                    k: p.k,
+                    omega: p.omega,
+                    alpha: p.alpha,
+                    sweep: p.sweep.clone(),
+                    dwell: p.dwell,
+                    model: p.model.clone(),
+                    grid,
+                    certify: p.certify.unwrap_or(true),
+                    margin,
+                })
+            }
+        };
+        if !e.plant && models.is_empty() && policy.is_none() {
+            return Err(bad(
+                "evaluate",
+                &"nothing",
+                "plant = true, models = [...] and/or policy = { name = ... }",
+            ));
+        }
+        let evaluate = Evaluate {
+            plant: e.plant,
+            convergence: e.plant && e.convergence,
+            models,
+            policy,
+        };
+
+        let metrics: Vec<String> = match &raw.metrics {
+            None => METRICS.iter().map(|m| m.to_string()).collect(),
+            Some(list) => {
+                for m in list {
+                    if !METRICS.contains(&m.as_str()) {
+                        return Err(bad("metrics", m, &format!("a list of {METRICS:?}")));
+                    }
+                }
+                // file order does not matter: the columns follow METRICS
+                METRICS
+                    .iter()
+                    .filter(|m| list.iter().any(|x| x == *m))
+                    .map(|m| m.to_string())
+                    .collect()
+            }
+        };
+        if metrics.is_empty() {
+            return Err(bad("metrics", &"[]", "at least one metric"));
+        }
+
+        if let Some(f) = &raw.figures {
+            let axis_keys: Vec<&String> = axes.iter().flat_map(|a| a.keys.iter()).collect();
+            for (field, k) in [
+                ("figures.x", Some(&f.x)),
+                ("figures.y", Some(&f.y)),
+                ("figures.rows", f.rows.as_ref()),
+                ("figures.columns", f.columns.as_ref()),
+            ] {
+                if let Some(k) = k {
+                    if !axis_keys.contains(&k) {
+                        return Err(bad(field, k, "the key of one of the plan's axes"));
+                    }
+                }
+            }
+            if !evaluate.plant || evaluate.models.is_empty() {
+                return Err(bad(
+                    "figures",
+                    &"a map",
+                    "maps compare models with the plant: evaluate.plant = true and at least one model",
+                ));
+            }
+        }
+
+        Ok(Plan {
+            name: raw.name,
+            description: raw.description,
+            origin: origin.to_string(),
+            base_toml,
+            base_origin,
+            set,
+            axes,
+            evaluate,
+            metrics,
+            figures: raw.figures,
+        })
+    }
+
+    /// Number of points (the product of the axes' lengths; 1 without axes).
+    pub fn len(&self) -> usize {
+        self.axes.iter().map(|a| a.values.len()).product()
+    }
+
+    /// True if the plan has no point (never: a plan without axes has one).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Flattens nested TOML tables into dotted keys (`{friction = {eps = 1}}` and
+/// `"friction.eps" = 1` both give `friction.eps`).
+fn flatten(prefix: &str, t: &toml::Table, out: &mut Vec<(String, toml::Value)>) {
+    for (k, v) in t {
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        match v {
+            toml::Value::Table(inner) => flatten(&key, inner, out),
+            _ => out.push((key, v.clone())),
+        }
+    }
+}
+
+/// A dotted scenario key: `section.field` (or deeper), each part a TOML bare key.
+fn check_key(k: &str) -> Result<(), String> {
+    let parts: Vec<&str> = k.split('.').collect();
+    let bare = |p: &str| {
+        !p.is_empty()
+            && p.chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    };
+    if parts.len() >= 2 && parts.iter().all(|p| bare(p)) {
+        Ok(())
+    } else {
+        Err("a dotted scenario key such as friction.eps or actuation.alpha (section.field)".into())
+    }
+}
+
+/// `num` values from `start` to `stop` inclusive, evenly (or geometrically) spaced; the ends
+/// are exact.
+fn spaced(r: Range, log: bool) -> Result<Vec<f64>, (&'static str, String, String)> {
+    if !r.start.is_finite() {
+        return Err(("start", r.start.to_string(), "a finite number".into()));
+    }
+    if !r.stop.is_finite() {
+        return Err(("stop", r.stop.to_string(), "a finite number".into()));
+    }
+    if !(1..=100_000).contains(&r.num) {
+        return Err(("num", r.num.to_string(), "1 <= num <= 100000".into()));
+    }
+    if log && (r.start <= 0.0 || r.stop <= 0.0) {
+        let v = if r.start <= 0.0 { r.start } else { r.stop };
+        return Err((
+            if r.start <= 0.0 { "start" } else { "stop" },
+            v.to_string(),
+            "a number > 0 (logspace spaces the values geometrically between start and stop)".into(),
+        ));
+    }
+    let n = r.num as usize;
+    if n == 1 {
+        return Ok(vec![r.start]);
+    }
+    let last = (n - 1) as f64;
+    Ok((0..n)
+        .map(|i| {
+            if i == n - 1 {
+                r.stop
+            } else if log {
+                (r.start.ln() + (r.stop.ln() - r.start.ln()) * i as f64 / last).exp()
+            } else {
+                r.start + (r.stop - r.start) * i as f64 / last
+            }
+        })
+        .collect())
+}
+
+/// The Parquet type of an axis column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ColumnType {
+    /// 64-bit float (any number; integers and floats mixed).
+    Float,
+    /// 64-bit integer (all values integers).
+    Int,
+    /// UTF-8 text.
+    Text,
+    /// Boolean.
+    Bool,
+}
+
+/// The column type of each key of an axis, or the key whose values mix kinds.
+pub fn column_type(
+    keys: &[String],
+    values: &[Vec<toml::Value>],
+) -> Result<Vec<ColumnType>, (String, String)> {
+    let mut out = Vec::new();
+    for (i, k) in keys.iter().enumerate() {
+        let kinds: Vec<ColumnType> = values
+            .iter()
+            .map(|row| match &row[i] {
+                toml::Value::Integer(_) => ColumnType::Int,
+                toml::Value::Float(_) => ColumnType::Float,
+                toml::Value::String(_) => ColumnType::Text,
+                _ => ColumnType::Bool,
+            })
+            .collect();
+        let t = if kinds.iter().all(|t| *t == ColumnType::Int) {
+            ColumnType::Int
+        } else if kinds
+            .iter()
+            .all(|t| matches!(t, ColumnType::Int | ColumnType::Float))
+        {
+            ColumnType::Float
+        } else if kinds.iter().all(|t| *t == kinds[0]) {
+            kinds[0]
+        } else {
+            return Err((
+                k.clone(),
+                "values of one kind (numbers, strings or booleans)".into(),
+            ));
+        };
+        out.push(t);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(text: &str) -> Result<Plan, PlanError> {
+        Plan::from_toml(text, "test.toml", Path::new("."))
+    }
+
+    const EVAL: &str = "[evaluate]\nmodels = [\"paper\"]\n";
+
+    #[test]
+    fn linspace_and_logspace_hit_their_ends_exactly() {
+        let p = plan(&format!(
+            "name = \"t\"\n[[axes]]\nkey = \"friction.eps\"\nlinspace = {{ start = 0.0, stop = 1.5, num = 31 }}\n\
+             [[axes]]\nkey = \"actuation.alpha\"\nlogspace = {{ start = 0.2, stop = 2.0, num = 3 }}\n{EVAL}"
+        ))
+        .unwrap();
+        assert_eq!(p.len(), 93);
+        let eps: Vec<f64> = p.axes[0]
+            .values
+            .iter()
+            .map(|v| v[0].as_float().unwrap())
+            .collect();
+        assert_eq!(eps[0], 0.0);
+        assert_eq!(eps[30], 1.5);
+        assert!((eps[10] - 0.5).abs() < 1e-15);
+        let a: Vec<f64> = p.axes[1]
+            .values
+            .iter()
+            .map(|v| v[0].as_float().unwrap())
+            .collect();
+        assert_eq!(a[0], 0.2);
+        assert_eq!(a[2], 2.0);
+        // geometric: the middle value is the geometric mean of the ends
+        assert!((a[1] - (0.4f64).sqrt()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn errors_name_the_field_the_value_and_what_is_allowed() {
+        let cases = [
+            ("name = \"a b\"\n[evaluate]\nplant = true\n", "name"),
+            (
+                "name = \"t\"\n[[axes]]\nkey = \"eps\"\nvalues = [1.0]\n[evaluate]\nplant = true\n",
+                "dotted scenario key",
+            ),
+            (
+                "name = \"t\"\n[[axes]]\nkey = \"friction.eps\"\nlinspace = { start = 0.0, stop = 1.0, num = 0 }\n[evaluate]\nplant = true\n",
+                "axes[0].linspace.num = 0",
+            ),
+            (
+                "name = \"t\"\n[[axes]]\nkey = \"actuation.alpha\"\nlogspace = { start = 0.0, stop = 1.0, num = 3 }\n[evaluate]\nplant = true\n",
+                "axes[0].logspace.start = 0",
+            ),
+            (
+                "name = \"t\"\n[[axes]]\nkey = \"friction.eps\"\nvalues = [1.0, \"x\"]\n[evaluate]\nplant = true\n",
+                "values of one kind",
+            ),
+            ("name = \"t\"\n[evaluate]\nmodels = [\"exact\"]\n", "evaluate.models = exact"),
+            ("name = \"t\"\n[evaluate]\n", "evaluate = nothing"),
+            (
+                "name = \"t\"\n[evaluate]\npolicy = { name = \"nope\" }\n",
+                "evaluate.policy.name = nope",
+            ),
+            (
+                "name = \"t\"\nmetrics = [\"speed\"]\n[evaluate]\nplant = true\n",
+                "metrics = speed",
+            ),
+            (
+                "name = \"t\"\n[[axes]]\nkey = \"friction.eps\"\nvalues = [1.0]\n[[axes]]\nkey = \"friction.eps\"\nvalues = [2.0]\n[evaluate]\nplant = true\n",
+                "no other axis",
+            ),
+            ("name = \"t\"\nbogus = 1\n[evaluate]\nplant = true\n", "unknown field"),
+        ];
+        for (text, needle) in cases {
+            let e = plan(text).expect_err(text).to_string();
+            assert!(e.contains(needle), "{e:?} should contain {needle:?}");
+            assert!(e.starts_with("plan test.toml"), "{e}");
+        }
+    }
+
+    #[test]
+    fn zipped_axes_take_one_value_per_key() {
+        let p = plan(&format!(
+            "name = \"t\"\n[[axes]]\nkeys = [\"actuation.k\", \"numerics.cells\"]\nvalues = [[6.283185307179586, 64], [12.566370614359172, 128]]\n{EVAL}"
+        ))
+        .unwrap();
+        assert_eq!(p.len(), 2);
+        assert_eq!(
+            column_type(&p.axes[0].keys, &p.axes[0].values).unwrap(),
+            vec![ColumnType::Float, ColumnType::Int]
+        );
+        let e = plan(&format!(
+            "name = \"t\"\n[[axes]]\nkeys = [\"actuation.k\", \"numerics.cells\"]\nvalues = [[6.28]]\n{EVAL}"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("axes[0].values[0]") && e.contains("an array of 2 values"),
+            "{e}"
+        );
+    }
+}
