@@ -59,6 +59,10 @@ struct RunArgs {
     /// Number of cells (default: the scenario's).
     #[arg(long)]
     cells: Option<i64>,
+    /// Task mode: the run ends when the body has travelled the task's distance (success) or
+    /// spent its energy (failure).
+    #[arg(long)]
+    task: bool,
     /// Continue a stopped run from the plant's checkpoint (the checkpoint holds the plant's
     /// scenario and grid; `--scenario` and `--policy` still choose the controller's).
     #[arg(long, value_name = "FILE", conflicts_with = "cells")]
@@ -346,6 +350,9 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(n) = a.cells {
         plant_args.extend(["--cells".into(), n.to_string()]);
+    }
+    if a.task {
+        plant_args.push("--task".into());
     }
     plant_args.extend(["--wait-timeout".into(), "120".into()]);
     let mut ctl_args: Vec<String> = vec![

@@ -10,6 +10,7 @@ use crawler_plant::framing;
 use crawler_plant::plant::{Plant, PlantState};
 use crawler_plant::scenario::Scenario;
 use crawler_plant::simulate::EpisodeLog;
+use crawler_plant::task::TaskTracker;
 
 const MAGIC: &[u8; 8] = b"CRWLCKPT";
 const VERSION: u32 = 2;
@@ -32,6 +33,8 @@ pub struct Checkpoint {
     pub rejections: Rejections,
     /// Why the run stopped.
     pub reason: String,
+    /// The run's progress against its task.
+    pub task: TaskTracker,
 }
 
 impl Checkpoint {

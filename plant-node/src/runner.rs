@@ -20,8 +20,9 @@ use crawler_cli::Exit;
 use crawler_plant::model_description::ModelDescription;
 use crawler_plant::plant::Plant;
 use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::{report, EpisodeLog, Report};
+use crawler_plant::simulate::{mean_position, report_with_task, EpisodeLog, Report};
 use crawler_plant::slave::{Slave, StepStatus};
+use crawler_plant::task::TaskTracker;
 use crawler_protocol::{
     encode, EpisodeMsg, Events, Metrics as MetricsMsg, ModelInfo, Rejections, Role, State, Status,
     PROTOCOL_VERSION,
@@ -103,6 +104,8 @@ pub struct Runner {
     opts: RunOptions,
     id: String,
     tension: Vec<f64>,
+    /// Progress against the scenario's task (it ends the run in task mode).
+    task: TaskTracker,
 }
 
 impl Runner {
@@ -134,8 +137,18 @@ impl Runner {
         if let Some(st) = &state {
             slave.set_state(st)?;
         }
+        slave.set_stress_limit(Some(scenario.task.sigma_max))?;
+        let task = match &opts.resume {
+            Some(c) => c.task,
+            None => TaskTracker::new(
+                scenario.task,
+                slave.plant().time(),
+                mean_position(slave.plant()),
+            ),
+        };
         let p = &scenario.plant;
         Ok(Self {
+            task,
             tension: Vec::with_capacity(p.numerics.cells),
             admission: Admission::new(p.numerics.cells, p.length, p.boundary, rejections),
             slave,
@@ -227,6 +240,7 @@ impl Runner {
             log: self.log.clone(),
             rejections: self.rejected(inbox),
             reason: reason.clone(),
+            task: self.task,
         };
         // Before a controller joins nothing has been simulated: no checkpoint (a resumed run's
         // own checkpoint stays as it was).
@@ -494,6 +508,21 @@ impl Runner {
                 StepStatus::Error(e) => anyhow::bail!("step {n} failed: {e}"),
             }
             self.log.observe(self.slave.plant());
+            let plant = self.slave.plant();
+            let decided =
+                self.task
+                    .observe(plant.time(), h, mean_position(plant), &plant.outputs());
+            if let (true, Some(outcome)) = (self.scenario.task.end_run, decided) {
+                // Task mode: this step is the run's last; the next state says so.
+                if self.last_step > n + 1 {
+                    eprintln!(
+                        "crawler-plant: task {} at step {}; the run ends there",
+                        outcome.as_str(),
+                        n + 1
+                    );
+                    self.last_step = n + 1;
+                }
+            }
             self.publish_step_outputs(out);
             if n.is_multiple_of(64) {
                 bar.set_position(n + 1);
@@ -517,7 +546,12 @@ impl Runner {
             "crawler-plant: lockstep: {steps} steps in {secs:.3} s ({:.0} steps/s, {state_bytes} bytes per state)",
             steps as f64 / secs
         );
-        let rep = report(&self.scenario.name, self.plant(), &self.log);
+        let rep = report_with_task(
+            &self.scenario.name,
+            self.plant(),
+            &self.log,
+            Some(&self.task),
+        );
         // The summary on the wire leaves out the episode list (the events stream carried every
         // episode; the list alone can exceed a status message's size limit).
         let summary = rep.as_ref().ok().map(|r| {

@@ -23,6 +23,7 @@ fn sample() -> Checkpoint {
         log: EpisodeLog::new(10),
         rejections: Default::default(),
         reason: "test".into(),
+        task: crawler_plant::task::TaskTracker::new(s.task, 0.0, 0.0),
     }
 }
 
