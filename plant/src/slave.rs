@@ -435,7 +435,7 @@ impl Slave {
         // exact start value after instantiation (FMPy does) may also set them in Instantiated.
         let structural = matches!(self.state, Instantiated | ConfigurationMode);
         let params = matches!(self.state, Instantiated | InitializationMode);
-        let inputs = matches!(self.state, InitializationMode | StepMode);
+        let inputs = matches!(self.state, Instantiated | InitializationMode | StepMode);
         match vr {
             vr::CELLS | vr::BOUNDARY => structural,
             vr::LENGTH | vr::AREA..=vr::PIPE => params,
