@@ -242,3 +242,33 @@ fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
     let t = r["time"].as_f64().unwrap();
     assert!((t - steps as f64 * h).abs() < 1e-9, "ecos time {t}");
 }
+
+#[test]
+fn the_readme_fmpy_example_runs_as_shown() {
+    let readme = std::fs::read_to_string(crawler_e2e::repo_root().join("README.md")).unwrap();
+    let start = readme
+        .find("```python\nfrom fmpy import")
+        .expect("README shows an FMPy example");
+    let code = &readme[start + "```python\n".len()..];
+    let code = &code[..code.find("```").unwrap()];
+    assert!(code.lines().count() <= 12, "the example stays short");
+    let code = code.replace("target/fmu/crawler_plant.fmu", path_str(&fmu(2)));
+    let out = Command::new(crawler_e2e::python())
+        .args(["-c", &code])
+        .output()
+        .expect("run the README example");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // stick-slip (eps = 1, f0 = 0.2 N) still crawls forwards, slower than the paper's case
+    let v: f64 = stdout
+        .split("steady V = ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no V in {stdout}"));
+    assert!(v > 0.0 && v < 0.0489, "V = {v}");
+}
