@@ -43,10 +43,12 @@ pub mod category {
     pub const ERROR: &str = "logStatusError";
     /// Steps that were discarded.
     pub const DISCARD: &str = "logStatusDiscard";
+    /// Calls that succeeded with a warning.
+    pub const WARNING: &str = "logStatusWarning";
     /// Lifecycle and configuration (only with debug logging on).
     pub const EVENTS: &str = "logEvents";
     /// Every category.
-    pub const ALL: [&str; 3] = [ERROR, DISCARD, EVENTS];
+    pub const ALL: [&str; 4] = [ERROR, DISCARD, WARNING, EVENTS];
 }
 
 /// Tag of a live instance (a stale or foreign pointer is refused instead of used).
@@ -107,7 +109,7 @@ impl Instance {
                 None => {
                     self.log(
                         Status::Warning,
-                        category::ERROR,
+                        category::WARNING,
                         &format!(
                             "unknown log category {c:?}: allowed {}",
                             category::ALL.join(", ")
@@ -120,10 +122,10 @@ impl Instance {
         Status::Ok
     }
 
-    /// Sends a message to the importer's logger. Errors and discards are always sent; other
-    /// categories only with debug logging on for them.
+    /// Sends a message to the importer's logger. Errors, discards and warnings are always sent;
+    /// other messages only with debug logging on for their category.
     pub fn log(&self, status: Status, category: &str, message: &str) {
-        let always = matches!(status, Status::Error | Status::Discard);
+        let always = matches!(status, Status::Error | Status::Discard | Status::Warning);
         if !always && !self.debug.contains(&category) {
             return;
         }

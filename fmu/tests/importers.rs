@@ -1,9 +1,10 @@
 //! The packaged FMUs in importers and validators we did not write: FMPy (validate, simulate,
 //! state round trip, two instances), fmu-manipulation-toolbox's `fmutool -check`, and ecos.
 //!
-//! The FMUs are packaged once per test process by `scripts/build-fmu.sh --prebuilt` from the
-//! library and the `crawler-fmu` program that `cargo test` has just built; the Python packages
-//! come from the project's venv (`scripts/setup-python.sh`, called by `crawler_e2e::python()`).
+//! The FMUs are built and packaged once per test process by `scripts/build-fmu.sh` (`cargo test`
+//! builds the library only as an rlib, so the script's `cargo build --release -p crawler-fmu`
+//! links the shared library; it reuses what the test build compiled); the Python packages come
+//! from the project's venv (`scripts/setup-python.sh`, called by `crawler_e2e::python()`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -17,12 +18,16 @@ fn fmus() -> &'static Path {
     &DIR.get_or_init(|| {
         let dir = tempfile::tempdir().expect("temp dir");
         let bin = PathBuf::from(env!("CARGO_BIN_EXE_crawler-fmu"));
-        let target = bin.parent().unwrap().parent().unwrap().to_path_buf();
+        let profile_dir = bin.parent().unwrap().to_path_buf();
+        let release = profile_dir.file_name().and_then(|p| p.to_str()) == Some("release");
+        assert!(
+            release,
+            "run the FMU tests with --release (the script builds release)"
+        );
         let out = Command::new("bash")
             .arg(crawler_e2e::repo_root().join("scripts/build-fmu.sh"))
-            .arg("--prebuilt")
             .arg(dir.path())
-            .env("CARGO_TARGET_DIR", &target)
+            .env("CARGO_TARGET_DIR", profile_dir.parent().unwrap())
             .output()
             .expect("run scripts/build-fmu.sh");
         assert!(
@@ -263,12 +268,21 @@ fn the_readme_fmpy_example_runs_as_shown() {
         "{stdout}{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // stick-slip (eps = 1, f0 = 0.2 N) still crawls forwards, slower than the paper's case
+    // the same run as `crawler-plant simulate --eps 1 --f0 0.2` (printed to 5 digits)
     let v: f64 = stdout
         .split("steady V = ")
         .nth(1)
         .and_then(|s| s.split_whitespace().next())
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no V in {stdout}"));
-    assert!(v > 0.0 && v < 0.0489, "V = {v}");
+    let out = Command::new(crawler_e2e::bin("crawler-plant"))
+        .args(["simulate", "--json", "--eps", "1", "--f0", "0.2"])
+        .output()
+        .expect("run crawler-plant simulate");
+    let reference: Value = serde_json::from_slice(&out.stdout).expect("simulate --json");
+    let v_ref = reference["velocity"].as_f64().unwrap();
+    assert!(
+        (v - v_ref).abs() <= 5e-5 * v_ref.abs(),
+        "README example V = {v}, simulate {v_ref}"
+    );
 }

@@ -679,7 +679,7 @@ impl ModelDescription {
             ));
         }
         x.push_str("    </EnumerationType>\n  </TypeDefinitions>\n");
-        x.push_str("  <LogCategories>\n    <Category name=\"logStatusError\" description=\"Calls that failed, with the reason\"/>\n    <Category name=\"logStatusDiscard\" description=\"Steps that were discarded\"/>\n  </LogCategories>\n");
+        x.push_str("  <LogCategories>\n    <Category name=\"logStatusError\" description=\"Calls that failed, with the reason\"/>\n    <Category name=\"logStatusDiscard\" description=\"Steps that were discarded\"/>\n    <Category name=\"logStatusWarning\" description=\"Calls that succeeded with a warning\"/>\n    <Category name=\"logEvents\" description=\"Lifecycle messages (with debug logging on)\"/>\n  </LogCategories>\n");
         self.write_default_experiment(&mut x);
         x.push_str("  <ModelVariables>\n");
         for v in &self.variables {
@@ -772,7 +772,7 @@ impl ModelDescription {
             ));
         }
         x.push_str("      </Enumeration>\n    </SimpleType>\n  </TypeDefinitions>\n");
-        x.push_str("  <LogCategories>\n    <Category name=\"logStatusError\" description=\"Calls that failed, with the reason\"/>\n    <Category name=\"logStatusDiscard\" description=\"Steps that were discarded\"/>\n  </LogCategories>\n");
+        x.push_str("  <LogCategories>\n    <Category name=\"logStatusError\" description=\"Calls that failed, with the reason\"/>\n    <Category name=\"logStatusDiscard\" description=\"Steps that were discarded\"/>\n    <Category name=\"logStatusWarning\" description=\"Calls that succeeded with a warning\"/>\n    <Category name=\"logEvents\" description=\"Lifecycle messages (with debug logging on)\"/>\n  </LogCategories>\n");
         self.write_default_experiment(&mut x);
         x.push_str("  <ModelVariables>\n");
         // (1-based index in ModelVariables, variable) of every scalar written, for ModelStructure.
