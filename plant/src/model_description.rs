@@ -299,12 +299,10 @@ pub fn fmi2_element_reference(array: u32, i: usize) -> u32 {
 
 /// The array and 0-based element of an FMI 2.0 element reference (`None` for a scalar's).
 pub fn fmi2_element_of(reference: u32) -> Option<(u32, usize)> {
-    (reference >= FMI2_ARRAY_STRIDE).then(|| {
-        (
-            reference / FMI2_ARRAY_STRIDE,
-            (reference % FMI2_ARRAY_STRIDE) as usize,
-        )
-    })
+    (reference >= FMI2_ARRAY_STRIDE).then_some((
+        reference / FMI2_ARRAY_STRIDE,
+        (reference % FMI2_ARRAY_STRIDE) as usize,
+    ))
 }
 
 /// The SI units used, with their exponents of the base units `[kg, m, s, A, K, mol, cd, rad]`.

@@ -386,7 +386,8 @@ impl Slave {
             return StepStatus::Error(self.fail::<()>(e.into()).unwrap_err());
         }
         let n = (h / step).round();
-        if !(h.is_finite() && n >= 1.0 && n < 1e15 && (h - n * step).abs() <= tol.max(1e-9 * h)) {
+        if !(h.is_finite() && (1.0..1e15).contains(&n) && (h - n * step).abs() <= tol.max(1e-9 * h))
+        {
             let d = self.plant.discretisation();
             let e = ParamError::new(
                 "h",
