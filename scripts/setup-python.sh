@@ -6,7 +6,8 @@ cd "$(dirname "$0")/.."
 if [ ! -x .venv/bin/python ]; then
   python3 -m venv .venv
 fi
-if ! .venv/bin/python -c 'import zenoh, msgpack, numpy, pyarrow' 2>/dev/null || [ requirements.txt -nt .venv/.installed ]; then
+# (find_spec, not import: ecospy's import loads its native library, which needs libtbb12.)
+if ! .venv/bin/python -c 'import importlib.util as u, sys; sys.exit(any(u.find_spec(m) is None for m in ("zenoh", "msgpack", "numpy", "pyarrow", "fmpy", "fmu_manipulation_toolbox", "ecospy")))' 2>/dev/null || [ requirements.txt -nt .venv/.installed ]; then
   .venv/bin/pip install --quiet --disable-pip-version-check -r requirements.txt
   touch .venv/.installed
 fi

@@ -86,7 +86,7 @@ struct SimulateArgs {
 struct DescribeArgs {
     #[command(flatten)]
     scenario: ScenarioArgs,
-    /// FMI-style modelDescription.xml instead of JSON.
+    /// FMI 3.0 modelDescription.xml instead of JSON (the FMUs' own: scripts/build-fmu.sh).
     #[arg(long)]
     xml: bool,
 }
@@ -252,7 +252,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Describe(a) => {
             let scenario = a.scenario.load()?;
-            let md = crawler_plant::model_description::ModelDescription::new(&scenario.plant);
+            // The scenario's wave as the inputs' start values and its run as the default
+            // experiment: the description of the FMU built from this scenario.
+            let md = crawler_plant::model_description::ModelDescription::for_run(
+                &scenario.plant,
+                scenario.wave,
+                scenario.t_end,
+            );
             if a.xml {
                 print!("{}", md.to_xml());
             } else {

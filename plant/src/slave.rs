@@ -1,10 +1,15 @@
 //! An FMI 3.0 co-simulation style slave around the [`Plant`].
 //!
-//! Lifecycle: `instantiate` → Instantiated → `enter_initialization_mode` → InitializationMode →
+//! Lifecycle: `instantiate` → Instantiated (⇄ ConfigurationMode, where the structural parameters
+//! `cells` and `boundary` are set) → `enter_initialization_mode` → InitializationMode →
 //! `exit_initialization_mode` → StepMode → `terminate` → Terminated; `reset` returns to
 //! Instantiated from any state. A call that is not allowed in the current state, or any other
 //! failure reported as `Error`, puts the slave into the Error state, from which only getters,
 //! `set_state` and `reset` are accepted (as in FMI 3.0).
+//!
+//! Times given by an importer are compared with the plant's own (`t0 + n H`, from an integer
+//! step count) within [`time_tolerance`], which grows with `|t|`: importers compute their time
+//! and step by adding and subtracting floats (FMPy sends `h = 0.009999999999999787` for 10 ms).
 
 use serde::{Deserialize, Serialize};
 
@@ -20,6 +25,8 @@ use crate::wave::Wave;
 pub enum LifecycleState {
     /// Created; fixed parameters may be set.
     Instantiated,
+    /// Structural parameters (`cells`, `boundary`) may be set (FMI 3.0 Configuration Mode).
+    ConfigurationMode,
     /// Initialisation: parameters and inputs may be set, outputs read.
     InitializationMode,
     /// Stepping.
@@ -106,6 +113,7 @@ pub struct Slave {
     instance_name: String,
     params: PlantParams,
     original: PlantParams,
+    start_wave: Option<Wave>,
     state: LifecycleState,
     plant: Plant,
     inputs: Inputs,
@@ -113,33 +121,66 @@ pub struct Slave {
     stop_time: Option<f64>,
 }
 
+/// How far an importer's time may be from the plant's own and still name the same communication
+/// point, s: `1e-9 (|t| + H)`, at most `H / 4` (so that no two points can be confused). It grows
+/// with `|t|` because importers add up their time in floats.
+pub fn time_tolerance(t: f64, step: f64) -> f64 {
+    (1e-9 * (t.abs() + step)).min(0.25 * step)
+}
+
 const STATE_MAGIC: &[u8; 8] = b"CRWLSTAT";
 const STATE_VERSION: u32 = 2;
 
 impl Slave {
-    /// `fmi3InstantiateCoSimulation`: validates the parameters and allocates the plant.
+    /// `fmi3InstantiateCoSimulation`: validates the parameters and allocates the plant, without
+    /// actuation until the inputs are set.
     pub fn instantiate(instance_name: &str, params: PlantParams) -> Result<Self, SlaveError> {
+        Self::build(instance_name, params, None)
+    }
+
+    /// Instantiates a plant whose inputs start as `wave` (actuation mode 1): it is driven by
+    /// the wave unless the importer sets other inputs. This is what an FMU does with its
+    /// scenario's wave (the start values of its model description).
+    pub fn instantiate_with_wave(
+        instance_name: &str,
+        params: PlantParams,
+        wave: Wave,
+    ) -> Result<Self, SlaveError> {
+        wave.validate_for_body(params.length, params.numerics.cells, params.boundary)?;
+        Self::build(instance_name, params, Some(wave))
+    }
+
+    fn build(
+        instance_name: &str,
+        params: PlantParams,
+        start_wave: Option<Wave>,
+    ) -> Result<Self, SlaveError> {
         let plant = Plant::new(params.clone(), 0.0)?;
         Ok(Self {
             instance_name: instance_name.to_string(),
+            inputs: Self::start_inputs(&params, start_wave),
             params: params.clone(),
-            original: params.clone(),
+            original: params,
+            start_wave,
             state: LifecycleState::Instantiated,
-            inputs: Inputs {
-                mode: 0,
-                wave: Wave {
-                    f0: 0.0,
-                    k: std::f64::consts::TAU / params.length,
-                    omega: 1.0,
-                    phase: 0.0,
-                },
-                field: vec![0.0; params.numerics.cells],
-                dirty: false,
-            },
             plant,
             start_time: 0.0,
             stop_time: None,
         })
+    }
+
+    fn start_inputs(params: &PlantParams, start_wave: Option<Wave>) -> Inputs {
+        Inputs {
+            mode: if start_wave.is_some() { 1 } else { 0 },
+            wave: start_wave.unwrap_or(Wave {
+                f0: 0.0,
+                k: std::f64::consts::TAU / params.length,
+                omega: 1.0,
+                phase: 0.0,
+            }),
+            field: vec![0.0; params.numerics.cells],
+            dirty: start_wave.is_some(),
+        }
     }
 
     /// Instance name.
@@ -167,9 +208,27 @@ impl Slave {
         Ok(self.plant.set_stress_limit(sigma_max)?)
     }
 
-    /// The model description.
+    /// The model description (start values: the current parameters and the start inputs).
     pub fn model_description(&self) -> ModelDescription {
-        ModelDescription::new(&self.params)
+        ModelDescription::with_inputs(&self.params, self.start_wave)
+    }
+
+    /// `fmi3EnterConfigurationMode`: from Instantiated; the structural parameters `cells` and
+    /// `boundary` may then be set.
+    pub fn enter_configuration_mode(&mut self) -> Result<(), SlaveError> {
+        self.require("enter_configuration_mode", &[LifecycleState::Instantiated])?;
+        self.state = LifecycleState::ConfigurationMode;
+        Ok(())
+    }
+
+    /// `fmi3ExitConfigurationMode`: back to Instantiated.
+    pub fn exit_configuration_mode(&mut self) -> Result<(), SlaveError> {
+        self.require(
+            "exit_configuration_mode",
+            &[LifecycleState::ConfigurationMode],
+        )?;
+        self.state = LifecycleState::Instantiated;
+        Ok(())
     }
 
     fn fail<T>(&mut self, e: SlaveError) -> Result<T, SlaveError> {
@@ -243,9 +302,10 @@ impl Slave {
         Ok(())
     }
 
-    /// `fmi3Reset`: back to Instantiated with the parameters given at instantiation.
+    /// `fmi3Reset`: back to Instantiated with the parameters and start inputs given at
+    /// instantiation.
     pub fn reset(&mut self) -> Result<(), SlaveError> {
-        let fresh = Self::instantiate(&self.instance_name, self.original.clone())?;
+        let fresh = Self::build(&self.instance_name, self.original.clone(), self.start_wave)?;
         *self = fresh;
         Ok(())
     }
@@ -306,36 +366,42 @@ impl Slave {
         }
     }
 
-    /// `fmi3DoStep` from `current_time` (must equal the slave's time) over `h` seconds, a
-    /// whole number of communication steps `H`.
+    /// `fmi3DoStep` from `current_time` (the slave's time, within [`time_tolerance`]) over `h`
+    /// seconds, a whole number of communication steps `H` (within the same tolerance). Any
+    /// other `h` is an Error: the plant's step is fixed (`canHandleVariableCommunicationStepSize
+    /// = false`), and a Discard would invite the importer to retry with the same `h`.
     pub fn do_step(&mut self, current_time: f64, h: f64) -> StepStatus {
         if let Err(e) = self.require("do_step", &[LifecycleState::StepMode]) {
             return StepStatus::Error(e);
         }
         let now = self.plant.time();
         let step = self.plant.step_length();
-        if !current_time.is_finite() || (current_time - now).abs() > 1e-9 * step {
+        let tol = time_tolerance(now, step);
+        if !current_time.is_finite() || (current_time - now).abs() > tol {
             let e = ParamError::new(
                 "current_time",
                 current_time,
-                format!("the slave's time {now} s"),
+                format!("the slave's time {now} s (within {tol:.1e} s)"),
             );
             return StepStatus::Error(self.fail::<()>(e.into()).unwrap_err());
         }
         let n = (h / step).round();
-        if !(h.is_finite() && h > 0.0 && n >= 1.0 && (h - n * step).abs() <= 1e-9 * h) {
-            return StepStatus::Discard {
-                last_successful_time: now,
-                reason: format!(
-                    "h = {h} s is not a whole number of communication steps H = {step} s \
-                     (each H is {} internal steps of dt = {:e} s, the CFL-limited step)",
-                    self.plant.discretisation().substeps,
-                    self.plant.discretisation().dt
+        if !(h.is_finite() && (1.0..1e15).contains(&n) && (h - n * step).abs() <= tol.max(1e-9 * h))
+        {
+            let d = self.plant.discretisation();
+            let e = ParamError::new(
+                "h",
+                h,
+                format!(
+                    "a whole number of communication steps H = {step:e} s (each H is {} internal \
+                     steps of dt = {:e} s; the plant's step is fixed)",
+                    d.substeps, d.dt
                 ),
-            };
+            );
+            return StepStatus::Error(self.fail::<()>(e.into()).unwrap_err());
         }
         if let Some(stop) = self.stop_time {
-            if now + h > stop + 1e-9 * step {
+            if now + n * step > stop + tol {
                 let e = ParamError::new(
                     "h",
                     h,
@@ -366,66 +432,103 @@ impl Slave {
 
     fn settable(&self, vr: u32) -> bool {
         use LifecycleState::*;
+        // FMI 3.0 sets structural parameters in Configuration Mode; importers that set every
+        // exact start value after instantiation (FMPy does) may also set them in Instantiated.
+        let structural = matches!(self.state, Instantiated | ConfigurationMode);
         let params = matches!(self.state, Instantiated | InitializationMode);
-        let inputs = matches!(self.state, InitializationMode | StepMode);
+        let inputs = matches!(self.state, Instantiated | InitializationMode | StepMode);
         match vr {
-            vr::AREA..=vr::BLOCK => params,
+            vr::CELLS | vr::BOUNDARY => structural,
+            vr::LENGTH | vr::AREA..=vr::PIPE => params,
             vr::ACTUATION_MODE..=vr::MUSCLE_FORCE => inputs,
             _ => false,
         }
     }
 
+    fn not_settable<T>(&mut self, r: u32, kind: &'static str) -> Result<T, SlaveError> {
+        let state = self.state;
+        match crate::model_description::variable_name(r) {
+            Some((name, _)) => self.fail(SlaveError::NotSettable { name, vr: r, state }),
+            None => self.fail(SlaveError::UnknownReference { vr: r, kind }),
+        }
+    }
+
+    /// The Float64 array with value reference `r` (`muscle_force`, `u`, `v`, `tension`), or
+    /// `None` for any other reference.
+    pub fn float64_array(&self, r: u32) -> Option<std::borrow::Cow<'_, [f64]>> {
+        use std::borrow::Cow;
+        match r {
+            vr::MUSCLE_FORCE => Some(Cow::Borrowed(&self.inputs.field)),
+            vr::U => Some(Cow::Borrowed(self.plant.displacement())),
+            vr::V => Some(Cow::Borrowed(self.plant.velocity())),
+            vr::TENSION => Some(Cow::Owned(self.plant.tension())),
+            _ => None,
+        }
+    }
+
+    /// The value of the Float64 scalar `r`, or `None` if `r` is not one.
+    pub fn float64_scalar(&self, r: u32) -> Option<f64> {
+        let p = &self.params;
+        let d = self.plant.discretisation();
+        // Steady metrics are 0 until the first steady period closes (never NaN: importers
+        // record outputs from the start); `steady_periods` says when they are meaningful.
+        let steady = self.plant.steady_metrics();
+        let metric = |f: fn(&crate::metrics::Metrics) -> f64| steady.as_ref().map_or(0.0, f);
+        let u = self.plant.displacement();
+        Some(match r {
+            vr::TIME => self.plant.time(),
+            vr::LENGTH => p.length,
+            vr::AREA => p.body.area,
+            vr::DENSITY => p.body.density,
+            vr::YOUNGS_MODULUS => p.body.youngs_modulus,
+            vr::VISCOUS => p.friction.viscous,
+            vr::DRY => p.friction.dry,
+            vr::EPS => p.friction.eps,
+            vr::N_F => p.friction.n_f,
+            vr::COURANT => p.numerics.courant,
+            vr::STEP => p.numerics.step,
+            vr::SETTLE => p.numerics.settle,
+            vr::MIN_STICK => p.numerics.min_stick_periods,
+            vr::BLOCK => p.numerics.block,
+            vr::FILTER => p.numerics.filter,
+            vr::DT => d.dt,
+            vr::DX => d.dx,
+            vr::WAVE_SPEED => p.body.wave_speed(),
+            vr::COMMUNICATION_STEP => d.step,
+            vr::WAVE_F0 => self.inputs.wave.f0,
+            vr::WAVE_K => self.inputs.wave.k,
+            vr::WAVE_OMEGA => self.inputs.wave.omega,
+            vr::WAVE_PHASE => self.inputs.wave.phase,
+            vr::MEAN_SPEED => self.plant.outputs().mean_speed,
+            vr::INPUT_POWER => self.plant.outputs().input_power,
+            vr::TAIL_DISPLACEMENT => u[0],
+            vr::MEAN_DISPLACEMENT => u.iter().sum::<f64>() / u.len() as f64,
+            vr::VELOCITY => metric(|m| m.velocity),
+            vr::POWER => metric(|m| m.power),
+            vr::MILEAGE => metric(|m| m.mileage),
+            vr::MAX_STRESS => metric(|m| m.max_stress),
+            vr::MAX_STRAIN => metric(|m| m.max_strain),
+            vr::STUCK_FRACTION => metric(|m| m.stuck_fraction),
+            vr::MEAN_FRICTION_SELECTION => metric(|m| m.mean_friction_selection),
+            vr::STEADY_PERIODS => metric(|m| m.periods),
+            vr::EPISODE_RATE => metric(|m| m.episodes_per_node_per_period),
+            _ => return None,
+        })
+    }
+
     /// `fmi3GetFloat64`: values of the variables in order, arrays flattened.
     pub fn get_float64(&self, vrs: &[u32]) -> Result<Vec<f64>, SlaveError> {
         let mut out = Vec::new();
-        let p = &self.params;
-        let d = self.plant.discretisation();
-        let steady = self.plant.steady_metrics();
-        let metric = |f: fn(&crate::metrics::Metrics) -> f64| steady.as_ref().map_or(f64::NAN, f);
         for &r in vrs {
-            match r {
-                vr::TIME => out.push(self.plant.time()),
-                vr::LENGTH => out.push(p.length),
-                vr::AREA => out.push(p.body.area),
-                vr::DENSITY => out.push(p.body.density),
-                vr::YOUNGS_MODULUS => out.push(p.body.youngs_modulus),
-                vr::VISCOUS => out.push(p.friction.viscous),
-                vr::DRY => out.push(p.friction.dry),
-                vr::EPS => out.push(p.friction.eps),
-                vr::N_F => out.push(p.friction.n_f),
-                vr::COURANT => out.push(p.numerics.courant),
-                vr::STEP => out.push(p.numerics.step),
-                vr::SETTLE => out.push(p.numerics.settle),
-                vr::MIN_STICK => out.push(p.numerics.min_stick_periods),
-                vr::BLOCK => out.push(p.numerics.block),
-                vr::DT => out.push(d.dt),
-                vr::DX => out.push(d.dx),
-                vr::WAVE_SPEED => out.push(p.body.wave_speed()),
-                vr::WAVE_F0 => out.push(self.inputs.wave.f0),
-                vr::WAVE_K => out.push(self.inputs.wave.k),
-                vr::WAVE_OMEGA => out.push(self.inputs.wave.omega),
-                vr::WAVE_PHASE => out.push(self.inputs.wave.phase),
-                vr::MUSCLE_FORCE => out.extend_from_slice(&self.inputs.field),
-                vr::U => out.extend_from_slice(self.plant.displacement()),
-                vr::V => out.extend_from_slice(self.plant.velocity()),
-                vr::TENSION => out.extend(self.plant.tension()),
-                vr::MEAN_SPEED => out.push(self.plant.outputs().mean_speed),
-                vr::INPUT_POWER => out.push(self.plant.outputs().input_power),
-                vr::VELOCITY => out.push(metric(|m| m.velocity)),
-                vr::POWER => out.push(metric(|m| m.power)),
-                vr::MILEAGE => out.push(metric(|m| m.mileage)),
-                vr::MAX_STRESS => out.push(metric(|m| m.max_stress)),
-                vr::MAX_STRAIN => out.push(metric(|m| m.max_strain)),
-                vr::STUCK_FRACTION => out.push(metric(|m| m.stuck_fraction)),
-                vr::MEAN_FRICTION_SELECTION => out.push(metric(|m| m.mean_friction_selection)),
-                vr::STEADY_PERIODS => out.push(metric(|m| m.periods)),
-                vr::EPISODE_RATE => out.push(metric(|m| m.episodes_per_node_per_period)),
-                _ => {
-                    return Err(SlaveError::UnknownReference {
-                        vr: r,
-                        kind: "Float64",
-                    })
-                }
+            if let Some(a) = self.float64_array(r) {
+                out.extend_from_slice(&a);
+            } else if let Some(x) = self.float64_scalar(r) {
+                out.push(x);
+            } else {
+                return Err(SlaveError::UnknownReference {
+                    vr: r,
+                    kind: "Float64",
+                });
             }
         }
         Ok(out)
@@ -442,6 +545,34 @@ impl Slave {
                 _ => Err(SlaveError::UnknownReference {
                     vr: r,
                     kind: "UInt64",
+                }),
+            })
+            .collect()
+    }
+
+    /// `fmi3GetInt64` (the enumeration `boundary`, [`crate::model_description::BOUNDARY_ITEMS`]).
+    pub fn get_int64(&self, vrs: &[u32]) -> Result<Vec<i64>, SlaveError> {
+        vrs.iter()
+            .map(|&r| match r {
+                vr::BOUNDARY => Ok(crate::model_description::boundary_value(
+                    self.params.boundary,
+                )),
+                _ => Err(SlaveError::UnknownReference {
+                    vr: r,
+                    kind: "Int64 (enumeration)",
+                }),
+            })
+            .collect()
+    }
+
+    /// `fmi3GetString` (the pipe as JSON).
+    pub fn get_string(&self, vrs: &[u32]) -> Result<Vec<String>, SlaveError> {
+        vrs.iter()
+            .map(|&r| match r {
+                vr::PIPE => Ok(serde_json::to_string(&self.params.pipe).expect("pipe serializes")),
+                _ => Err(SlaveError::UnknownReference {
+                    vr: r,
+                    kind: "String",
                 }),
             })
             .collect()
@@ -464,7 +595,26 @@ impl Slave {
         Ok(out)
     }
 
-    /// `fmi3SetUInt64` (the actuation mode).
+    /// Replaces the parameters (before step mode): validated, the plant rebuilt.
+    fn replace_params(&mut self, params: PlantParams) -> Result<(), SlaveError> {
+        if params == self.params {
+            return Ok(());
+        }
+        if let Err(e) = params.validate() {
+            return self.fail(e.into());
+        }
+        match Plant::new(params.clone(), self.plant.start_time()) {
+            Ok(p) => self.plant = p,
+            Err(e) => return self.fail(e.into()),
+        }
+        if params.numerics.cells != self.params.numerics.cells {
+            self.inputs.field = vec![0.0; params.numerics.cells];
+        }
+        self.params = params;
+        Ok(())
+    }
+
+    /// `fmi3SetUInt64`: the actuation mode; `cells` in Configuration Mode.
     pub fn set_uint64(&mut self, vrs: &[u32], values: &[u64]) -> Result<(), SlaveError> {
         if vrs.len() != values.len() {
             return self.fail(SlaveError::WrongCount {
@@ -474,7 +624,10 @@ impl Slave {
         }
         for (&r, &x) in vrs.iter().zip(values) {
             match r {
-                vr::ACTUATION_MODE if self.settable(r) => {
+                vr::ACTUATION_MODE | vr::CELLS if !self.settable(r) => {
+                    return self.not_settable(r, "UInt64")
+                }
+                vr::ACTUATION_MODE => {
                     if x > 2 {
                         return self.fail(
                             ParamError::new("actuation_mode", x, "0 (none), 1 (wave) or 2 (field)")
@@ -484,19 +637,93 @@ impl Slave {
                     self.inputs.mode = x;
                     self.inputs.dirty = true;
                 }
-                vr::ACTUATION_MODE | vr::CELLS | vr::SUBSTEPS | vr::STUCK_NODES => {
-                    let state = self.state;
-                    let name = if r == vr::CELLS {
-                        "cells"
-                    } else {
-                        "uint64 variable"
-                    };
-                    return self.fail(SlaveError::NotSettable { name, vr: r, state });
+                vr::CELLS => {
+                    let cells = usize::try_from(x).unwrap_or(usize::MAX);
+                    let mut params = self.params.clone();
+                    params.numerics.cells = cells;
+                    self.replace_params(params)?;
                 }
+                vr::SUBSTEPS | vr::STUCK_NODES => return self.not_settable(r, "UInt64"),
                 _ => {
                     return self.fail(SlaveError::UnknownReference {
                         vr: r,
                         kind: "UInt64",
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `fmi3SetInt64`: the enumeration `boundary`, in Configuration Mode.
+    pub fn set_int64(&mut self, vrs: &[u32], values: &[i64]) -> Result<(), SlaveError> {
+        if vrs.len() != values.len() {
+            return self.fail(SlaveError::WrongCount {
+                expected: vrs.len(),
+                got: values.len(),
+            });
+        }
+        for (&r, &x) in vrs.iter().zip(values) {
+            match r {
+                vr::BOUNDARY if self.settable(r) => {
+                    let Some(b) = crate::model_description::boundary_of(x) else {
+                        return self.fail(
+                            ParamError::new("boundary", x, "1 (periodic) or 2 (free)").into(),
+                        );
+                    };
+                    let mut params = self.params.clone();
+                    params.boundary = b;
+                    self.replace_params(params)?;
+                }
+                vr::BOUNDARY => return self.not_settable(r, "Int64 (enumeration)"),
+                _ => {
+                    return self.fail(SlaveError::UnknownReference {
+                        vr: r,
+                        kind: "Int64 (enumeration)",
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `fmi3SetString`: the pipe, as the JSON of a scenario's `[pipe]` section (before step
+    /// mode).
+    pub fn set_string(&mut self, vrs: &[u32], values: &[&str]) -> Result<(), SlaveError> {
+        if vrs.len() != values.len() {
+            return self.fail(SlaveError::WrongCount {
+                expected: vrs.len(),
+                got: values.len(),
+            });
+        }
+        for (&r, &text) in vrs.iter().zip(values) {
+            match r {
+                vr::PIPE if self.settable(r) => {
+                    let pipe = match serde_json::from_str::<crate::pipe::Pipe>(text) {
+                        Ok(p) => p,
+                        Err(e) => {
+                            return self.fail(
+                                ParamError::new(
+                                    "pipe",
+                                    format!("{text:.80}"),
+                                    format!(
+                                        "the JSON of a scenario's [pipe] section ({e}), e.g. \
+                                         {{\"features\":[{{\"kind\":\"patch\",\"from\":0.5,\"to\":1.0,\"eps\":0.3}}]}}"
+                                    ),
+                                )
+                                .into(),
+                            )
+                        }
+                    };
+                    let mut params = self.params.clone();
+                    params.pipe = pipe;
+                    self.replace_params(params)?;
+                }
+                vr::PIPE => return self.not_settable(r, "String"),
+                _ => {
+                    return self.fail(SlaveError::UnknownReference {
+                        vr: r,
+                        kind: "String",
                     })
                 }
             }
@@ -520,27 +747,25 @@ impl Slave {
         let mut params = self.params.clone();
         let mut inputs = self.inputs.clone();
         let mut rest = values;
-        let md = self.model_description();
         for &r in vrs {
-            let Some(var) = md.variable(r).cloned() else {
-                return self.fail(SlaveError::UnknownReference {
-                    vr: r,
-                    kind: "Float64",
-                });
-            };
+            match crate::model_description::variable_name(r) {
+                Some((_, crate::model_description::VarType::Float64)) => {}
+                _ => {
+                    return self.fail(SlaveError::UnknownReference {
+                        vr: r,
+                        kind: "Float64",
+                    })
+                }
+            }
             if !self.settable(r) {
-                let state = self.state;
-                return self.fail(SlaveError::NotSettable {
-                    name: var.name,
-                    vr: r,
-                    state,
-                });
+                return self.not_settable(r, "Float64");
             }
             let take = if r == vr::MUSCLE_FORCE { n } else { 1 };
             let (now, later) = rest.split_at(take);
             rest = later;
             let x = now[0];
             match r {
+                vr::LENGTH => params.length = x,
                 vr::AREA => params.body.area = x,
                 vr::DENSITY => params.body.density = x,
                 vr::YOUNGS_MODULUS => params.body.youngs_modulus = x,
@@ -553,6 +778,7 @@ impl Slave {
                 vr::SETTLE => params.numerics.settle = x,
                 vr::MIN_STICK => params.numerics.min_stick_periods = x,
                 vr::BLOCK => params.numerics.block = x,
+                vr::FILTER => params.numerics.filter = x,
                 vr::WAVE_F0 => inputs.wave.f0 = x,
                 vr::WAVE_K => inputs.wave.k = x,
                 vr::WAVE_OMEGA => inputs.wave.omega = x,
@@ -566,29 +792,13 @@ impl Slave {
                     }
                     inputs.field.copy_from_slice(now);
                 }
-                _ => {
-                    let state = self.state;
-                    return self.fail(SlaveError::NotSettable {
-                        name: var.name,
-                        vr: r,
-                        state,
-                    });
-                }
+                _ => return self.not_settable(r, "Float64"),
             }
             if (vr::WAVE_F0..=vr::MUSCLE_FORCE).contains(&r) {
                 inputs.dirty = true;
             }
         }
-        if params != self.params {
-            if let Err(e) = params.validate() {
-                return self.fail(e.into());
-            }
-            match Plant::new(params.clone(), self.plant.start_time()) {
-                Ok(p) => self.plant = p,
-                Err(e) => return self.fail(e.into()),
-            }
-            self.params = params;
-        }
+        self.replace_params(params)?;
         if inputs.dirty && inputs.mode == 1 {
             if let Err(e) = inputs.wave.validate() {
                 return self.fail(e.into());

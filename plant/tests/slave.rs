@@ -162,10 +162,15 @@ fn illegal_lifecycle_calls_are_refused() {
     slave.reset().unwrap();
     slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
     slave.exit_initialization_mode().unwrap();
-    // not a whole number of communication steps: discarded, state unchanged
+    // not a whole number of communication steps: an Error (the step is fixed; a Discard would
+    // invite a retry with the same h), nothing stepped
     assert!(
-        matches!(slave.do_step(0.0, 1.5 * h), StepStatus::Discard { last_successful_time, .. } if last_successful_time == 0.0)
+        matches!(slave.do_step(0.0, 1.5 * h), StepStatus::Error(SlaveError::Invalid(ref e)) if e.field == "h")
     );
+    assert_eq!(slave.plant().macro_step(), 0);
+    slave.reset().unwrap();
+    slave.enter_initialization_mode(0.0, Some(0.01)).unwrap();
+    slave.exit_initialization_mode().unwrap();
     assert_eq!(slave.do_step(0.0, 2.0 * h), StepStatus::Ok);
     // beyond the stop time
     assert!(matches!(
@@ -238,6 +243,7 @@ fn value_references_read_and_write() {
 
 #[test]
 fn model_description_lists_every_variable_once() {
+    use crawler_plant::model_description::{variable_name, Causality};
     let s = stick_slip();
     let slave = Slave::instantiate("md", s.plant.clone()).unwrap();
     let md = slave.model_description();
@@ -246,19 +252,163 @@ fn model_description_lists_every_variable_once() {
     let len = refs.len();
     refs.dedup();
     assert_eq!(refs.len(), len, "duplicate value references");
-    let xml = md.to_xml();
+    for v in &md.variables {
+        assert_eq!(
+            variable_name(v.value_reference),
+            Some((v.name, v.var_type)),
+            "the name table disagrees with the description"
+        );
+    }
+    let xml = md.to_fmi3_xml();
     assert!(xml.contains("fmiVersion=\"3.0\""));
+    for v in &md.variables {
+        assert_eq!(
+            xml.matches(&format!(" name=\"{}\"", v.name)).count(),
+            1,
+            "{}",
+            v.name
+        );
+    }
+    let outputs = md
+        .variables
+        .iter()
+        .filter(|v| v.causality == Causality::Output)
+        .count();
+    let unknowns = outputs
+        + md.variables
+            .iter()
+            .filter(|v| v.causality == Causality::CalculatedParameter)
+            .count();
+    assert_eq!(xml.matches("<Output ").count(), outputs);
+    assert_eq!(xml.matches("<InitialUnknown ").count(), unknowns);
+    // FMI 2.0: arrays as N scalars each
+    let n = s.plant.numerics.cells;
+    let fmi2 = md.to_fmi2_xml();
+    let arrays = md.variables.iter().filter(|v| v.size.is_some()).count();
     assert_eq!(
-        xml.matches("valueReference=").count()
-            - md.variables.iter().filter(|v| v.size.is_some()).count()
-            - md.variables
-                .iter()
-                .filter(|v| v.causality == crawler_plant::model_description::Causality::Output)
-                .count(),
-        len
+        fmi2.matches("<ScalarVariable ").count(),
+        len - arrays + arrays * n
+    );
+    assert!(
+        fmi2.contains(&format!("name=\"u[{n}]\""))
+            && !fmi2.contains(&format!("name=\"u[{}]\"", n + 1))
     );
     let json: serde_json::Value = serde_json::from_str(&md.to_json()).unwrap();
     assert_eq!(json["variables"].as_array().unwrap().len(), len);
+}
+
+#[test]
+fn every_variable_reads_back_its_start_value() {
+    use crawler_plant::model_description::{Causality, ModelDescription, Start, VarType};
+    let s = stick_slip();
+    let md = ModelDescription::with_inputs(&s.plant, Some(s.wave));
+    let slave = Slave::instantiate_with_wave("starts", s.plant.clone(), s.wave).unwrap();
+    for v in &md.variables {
+        let Some(start) = &v.start else {
+            assert!(
+                matches!(
+                    v.causality,
+                    Causality::Output | Causality::CalculatedParameter | Causality::Independent
+                ),
+                "{} has no start value",
+                v.name
+            );
+            continue;
+        };
+        let r = [v.value_reference];
+        match (v.var_type, start) {
+            (VarType::Float64, Start::Float(x)) => {
+                let got = slave.get_float64(&r).unwrap();
+                assert!(got.iter().all(|g| g.to_bits() == x.to_bits()), "{}", v.name)
+            }
+            (VarType::UInt64, Start::UInt(x)) => {
+                assert_eq!(slave.get_uint64(&r).unwrap(), vec![*x], "{}", v.name)
+            }
+            (VarType::Enumeration, Start::Enum(x)) => {
+                assert_eq!(slave.get_int64(&r).unwrap(), vec![*x])
+            }
+            (VarType::String, Start::Text(x)) => assert_eq!(&slave.get_string(&r).unwrap()[0], x),
+            other => panic!("{}: start {other:?} of the wrong type", v.name),
+        }
+    }
+}
+
+#[test]
+fn the_pipe_parameter_round_trips_and_is_validated() {
+    let s = stick_slip();
+    let mut slave = Slave::instantiate("pipe", s.plant.clone()).unwrap();
+    let map = r#"{"start":0.1,"features":[{"kind":"ramp","from":0.0,"to":2.0,"eps":[1.0,0.2]}]}"#;
+    slave.set_string(&[vr::PIPE], &[map]).unwrap();
+    assert_eq!(slave.params().pipe.start, 0.1);
+    assert_eq!(slave.params().pipe.features.len(), 1);
+    let back = slave.get_string(&[vr::PIPE]).unwrap();
+    let mut again = Slave::instantiate("pipe2", s.plant.clone()).unwrap();
+    again.set_string(&[vr::PIPE], &[back[0].as_str()]).unwrap();
+    assert_eq!(again.params(), slave.params());
+    let err = slave
+        .set_string(&[vr::PIPE], &[r#"{"resolution":-1}"#])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("pipe.resolution"), "{err}");
+    slave.reset().unwrap();
+    let err = slave
+        .set_string(&[vr::PIPE], &["{"])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("invalid pipe") && err.contains("JSON"),
+        "{err}"
+    );
+}
+
+#[test]
+fn outputs_are_never_nan_before_the_steady_window() {
+    let s = stick_slip();
+    let mut slave = started(&s);
+    steps(&mut slave, 3);
+    let all: Vec<u32> = (200..=218)
+        .filter(|r| !matches!(r, 203 | 206 | 209))
+        .collect();
+    let values = slave.get_float64(&all).unwrap();
+    assert!(values.iter().all(|x| x.is_finite()));
+    assert_eq!(slave.get_float64(&[vr::STEADY_PERIODS]).unwrap(), vec![0.0]);
+    assert_eq!(slave.get_float64(&[vr::VELOCITY]).unwrap(), vec![0.0]);
+    let u = slave.plant().displacement().to_vec();
+    assert_eq!(
+        slave.get_float64(&[vr::TAIL_DISPLACEMENT]).unwrap(),
+        vec![u[0]]
+    );
+    let mean = u.iter().sum::<f64>() / u.len() as f64;
+    assert_eq!(
+        slave.get_float64(&[vr::MEAN_DISPLACEMENT]).unwrap(),
+        vec![mean]
+    );
+}
+
+#[test]
+fn importer_times_are_accepted_within_a_tolerance_that_grows_with_t() {
+    use crawler_plant::slave::time_tolerance;
+    let s = stick_slip();
+    let mut slave = started(&s);
+    let h = slave.plant().step_length();
+    // t accumulated by addition, h as a difference of two such times
+    let mut t = 0.0;
+    for _ in 0..3000 {
+        let next = t + h;
+        assert_eq!(slave.do_step(t, next - t), StepStatus::Ok);
+        t = next;
+    }
+    let now = slave.plant().time();
+    assert!(time_tolerance(now, h) > time_tolerance(0.0, h));
+    assert!(
+        time_tolerance(1e9, h) <= 0.25 * h,
+        "never more than a quarter step"
+    );
+    // half a step off is another communication point: refused
+    assert!(matches!(
+        slave.do_step(now + 0.5 * h, h),
+        StepStatus::Error(_)
+    ));
 }
 
 #[test]

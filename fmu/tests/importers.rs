@@ -1,0 +1,288 @@
+//! The packaged FMUs in importers and validators we did not write: FMPy (validate, simulate,
+//! state round trip, two instances), fmu-manipulation-toolbox's `fmutool -check`, and ecos.
+//!
+//! The FMUs are built and packaged once per test process by `scripts/build-fmu.sh` (`cargo test`
+//! builds the library only as an rlib, so the script's `cargo build --release -p crawler-fmu`
+//! links the shared library; it reuses what the test build compiled); the Python packages come
+//! from the project's venv (`scripts/setup-python.sh`, called by `crawler_e2e::python()`).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use serde_json::Value;
+
+/// Directory holding `crawler_plant.fmu` and `crawler_plant_fmi3.fmu`.
+fn fmus() -> &'static Path {
+    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    &DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let bin = PathBuf::from(env!("CARGO_BIN_EXE_crawler-fmu"));
+        let profile_dir = bin.parent().unwrap().to_path_buf();
+        let release = profile_dir.file_name().and_then(|p| p.to_str()) == Some("release");
+        assert!(
+            release,
+            "run the FMU tests with --release (the script builds release)"
+        );
+        let out = Command::new("bash")
+            .arg(crawler_e2e::repo_root().join("scripts/build-fmu.sh"))
+            .arg(dir.path())
+            .env("CARGO_TARGET_DIR", profile_dir.parent().unwrap())
+            .output()
+            .expect("run scripts/build-fmu.sh");
+        assert!(
+            out.status.success(),
+            "build-fmu.sh failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let path = dir.path().to_path_buf();
+        (dir, path)
+    })
+    .1
+}
+
+fn fmu(version: u8) -> PathBuf {
+    fmus().join(if version == 2 {
+        "crawler_plant.fmu"
+    } else {
+        "crawler_plant_fmi3.fmu"
+    })
+}
+
+/// Runs the importers script with `args`; its JSON answer.
+fn importers(args: &[&str]) -> Value {
+    let script = crawler_e2e::repo_root().join("fmu/tests/python/importers.py");
+    let out = Command::new(crawler_e2e::python())
+        .arg(script)
+        .args(args)
+        .output()
+        .expect("run importers.py");
+    assert!(
+        out.status.success(),
+        "importers.py {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "importers.py {args:?} printed no JSON ({e}):\n{}",
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })
+}
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 path")
+}
+
+fn bits(v: &Value) -> u64 {
+    v.as_f64().expect("a number").to_bits()
+}
+
+#[test]
+fn fmpy_validate_finds_no_problem_in_either_fmu() {
+    for version in [2, 3] {
+        let answer = importers(&["validate", path_str(&fmu(version))]);
+        let problems = answer["problems"].as_array().unwrap();
+        assert!(
+            problems.is_empty(),
+            "FMI {version}: fmpy validate found {} problems: {problems:#?}",
+            problems.len()
+        );
+    }
+}
+
+#[test]
+fn fmutool_check_is_clean_for_either_fmu() {
+    let fmutool = crawler_e2e::python().parent().unwrap().join("fmutool");
+    for version in [2, 3] {
+        let out = Command::new(&fmutool)
+            .args(["-input", path_str(&fmu(version)), "-check"])
+            .output()
+            .expect("run fmutool");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            out.status.success(),
+            "FMI {version}: fmutool -check failed:\n{text}"
+        );
+        assert!(
+            text.contains(&format!("compliant with FMI-{version}.0")),
+            "FMI {version}: {text}"
+        );
+        assert!(
+            text.contains(&format!(
+                "No semantic error against the FMI-{version} standard"
+            )),
+            "FMI {version}: {text}"
+        );
+        assert!(!text.contains("ERROR"), "FMI {version}: {text}");
+    }
+}
+
+/// `crawler-plant simulate --json` on the paper scenario (the FMU's defaults).
+fn simulate_in_process() -> Value {
+    let out = Command::new(crawler_e2e::bin("crawler-plant"))
+        .args(["simulate", "--json"])
+        .output()
+        .expect("run crawler-plant simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("simulate --json")
+}
+
+#[test]
+fn fmpy_simulate_matches_crawler_plant_simulate_bit_for_bit() {
+    let reference = simulate_in_process();
+    for version in [2, 3] {
+        let fmpy = importers(&["simulate", path_str(&fmu(version))]);
+        let o = &fmpy["outputs"];
+        assert_eq!(
+            fmpy["steps"], reference["macro_steps"],
+            "FMI {version}: the default experiment is the run of simulate"
+        );
+        assert_eq!(
+            fmpy["digest"], reference["state_digest"],
+            "FMI {version}: final u and v differ from crawler-plant simulate"
+        );
+        for (output, field) in [
+            ("velocity", "velocity"),
+            ("power", "power"),
+            ("mileage", "mileage"),
+            ("max_stress", "max_stress"),
+            ("max_strain", "max_strain"),
+            ("stuck_fraction", "stuck_fraction"),
+            ("mean_friction_selection", "mean_friction_selection"),
+        ] {
+            assert_eq!(
+                bits(&o[output]),
+                bits(&reference[field]),
+                "FMI {version}: {output} = {} in FMPy, {} in crawler-plant simulate",
+                o[output],
+                reference[field]
+            );
+        }
+        assert_eq!(
+            bits(&o["steady_periods"]),
+            bits(&reference["window"]["periods"])
+        );
+        assert_eq!(
+            bits(&o["episode_rate"]),
+            bits(&reference["events"]["per_node_per_period"])
+        );
+        // FMPy's own time arithmetic (t = n h) ends where the plant's clock (n H) does
+        let t_end = reference["t_end"].as_f64().unwrap();
+        let t = fmpy["final_time"].as_f64().unwrap();
+        assert!((t - t_end).abs() <= 1e-12 * t_end, "{t} vs {t_end}");
+    }
+}
+
+#[test]
+fn fmpy_state_round_trip_is_exact_also_in_a_fresh_instance() {
+    for version in [2, 3] {
+        let r = importers(&["state", path_str(&fmu(version)), "0.5", "1.0"]);
+        let straight = &r["straight"];
+        assert!(r["bytes"].as_u64().unwrap() > 0);
+        for key in ["replay", "fresh_replay"] {
+            assert_eq!(
+                &r[key], straight,
+                "FMI {version}: {key} differs from the straight run"
+            );
+        }
+        assert_eq!(
+            r["restored_at_t1"], r["fresh_at_t1"],
+            "FMI {version}: the state restored from bytes differs from the one kept in memory"
+        );
+        assert_ne!(
+            r["restored_at_t1"]["digest"], straight["digest"],
+            "the restore went back in time"
+        );
+    }
+}
+
+#[test]
+fn two_instances_with_other_parameters_in_one_process_do_not_interfere() {
+    for version in [2, 3] {
+        let r = importers(&["two", path_str(&fmu(version))]);
+        assert_eq!(r["together"]["a"], r["alone"]["a"], "FMI {version}");
+        assert_eq!(r["together"]["b"], r["alone"]["b"], "FMI {version}");
+        assert_ne!(
+            r["together"]["a"]["digest"], r["together"]["b"]["digest"],
+            "FMI {version}: the parameters were not applied"
+        );
+    }
+}
+
+#[test]
+fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
+    let steps = 2000u64;
+    let r = importers(&["ecos", path_str(&fmu(2)), &steps.to_string()]);
+    // the same run in process
+    let mut slave = crawler_fmu::defaults::slave("reference").unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    let h = slave.plant().step_length();
+    for n in 0..steps {
+        assert_eq!(
+            slave.do_step(n as f64 * h, h),
+            crawler_plant::slave::StepStatus::Ok
+        );
+    }
+    assert_eq!(
+        r["digest"].as_str().unwrap(),
+        crawler_plant::simulate::state_digest(slave.plant()),
+        "ecos's run differs from the in-process slave"
+    );
+    let mean = slave.float64_scalar(crawler_plant::model_description::vr::MEAN_DISPLACEMENT);
+    assert_eq!(
+        bits(&r["outputs"]["mean_displacement"]),
+        mean.unwrap().to_bits()
+    );
+    let t = r["time"].as_f64().unwrap();
+    assert!((t - steps as f64 * h).abs() < 1e-9, "ecos time {t}");
+}
+
+#[test]
+fn the_readme_fmpy_example_runs_as_shown() {
+    let readme = std::fs::read_to_string(crawler_e2e::repo_root().join("README.md")).unwrap();
+    let start = readme
+        .find("```python\nfrom fmpy import")
+        .expect("README shows an FMPy example");
+    let code = &readme[start + "```python\n".len()..];
+    let code = &code[..code.find("```").unwrap()];
+    assert!(code.lines().count() <= 12, "the example stays short");
+    let code = code.replace("target/fmu/crawler_plant.fmu", path_str(&fmu(2)));
+    let out = Command::new(crawler_e2e::python())
+        .args(["-c", &code])
+        .output()
+        .expect("run the README example");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // the same run as `crawler-plant simulate --eps 1 --f0 0.2` (printed to 5 digits)
+    let v: f64 = stdout
+        .split("steady V = ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no V in {stdout}"));
+    let out = Command::new(crawler_e2e::bin("crawler-plant"))
+        .args(["simulate", "--json", "--eps", "1", "--f0", "0.2"])
+        .output()
+        .expect("run crawler-plant simulate");
+    let reference: Value = serde_json::from_slice(&out.stdout).expect("simulate --json");
+    let v_ref = reference["velocity"].as_f64().unwrap();
+    assert!(
+        (v - v_ref).abs() <= 5e-5 * v_ref.abs(),
+        "README example V = {v}, simulate {v_ref}"
+    );
+}
