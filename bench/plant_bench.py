@@ -1,8 +1,11 @@
 """Cell updates per second of the plant's stepping loop: Rust against NumPy, side by side.
 
-Usage: .venv/bin/python bench/plant_bench.py [--seconds S] [--cells 256,4096,65536]
-Runs `crawler-plant bench` (release build) and the NumPy implementation of the same scheme
-(bench/plant_numpy.py) on the stick-slip case eps = 1, f0 = 0.2 N, alpha = 0.5, single thread.
+Usage: .venv/bin/python bench/plant_bench.py [--seconds S] [--cells 256,4096,65536] [--map]
+Runs `crawler-plant bench` (release build; it builds it first with cargo and says so) and the
+NumPy implementation of the same scheme (bench/plant_numpy.py) on the stick-slip case eps = 1,
+f0 = 0.2 N, alpha = 0.5, single thread. With --map it also runs the plant in a pipe whose friction
+varies (ten patches; a random texture held every millimetre), interleaved with the uniform pipe,
+and prints the map's cost.
 """
 
 import argparse
@@ -10,6 +13,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(__file__))
@@ -37,24 +41,63 @@ def numpy_rate(cells, seconds):
     return cells * steps / el
 
 
-def rust_rate(cells, seconds):
+def rust_rate(cells, seconds, scenario=None):
     exe = os.path.join(TARGET, "release", "crawler-plant")
-    out = subprocess.run([exe, "bench", "--cells", str(cells), "--seconds", str(seconds)] + CASE,
+    extra = ["--scenario", scenario] if scenario else []
+    out = subprocess.run([exe, "bench", "--cells", str(cells), "--seconds", str(seconds)] + CASE + extra,
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out)["cell_updates_per_second"]
+
+
+PATCHES = "".join(f"[[pipe.features]]\nkind = \"patch\"\nfrom = {0.5 * j + 0.5}\nto = {0.5 * j + 0.75}\neps = 1.5\n"
+                  for j in range(10))
+TEXTURE = ("[[pipe.features]]\nkind = \"texture\"\nfrom = -2.0\nto = 10.0\neps_std = 0.05\n"
+           "correlation = 0.05\nseed = 1\n")
+
+
+def scenario_with_pipe(features):
+    paper = open(os.path.join(ROOT, "scenarios", "paper.toml")).read()
+    f = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
+    f.write(paper + "\n[pipe]\n" + features)
+    f.close()
+    return f.name
+
+
+def map_cost(cells, seconds, runs=3):
+    """Median over interleaved runs of uniform / map cell-update rates."""
+    files = {"patches": scenario_with_pipe(PATCHES), "texture": scenario_with_pipe(TEXTURE)}
+    ratios = {k: [] for k in files}
+    try:
+        for _ in range(runs):
+            for k, path in files.items():
+                uniform = rust_rate(cells, seconds)
+                mapped = rust_rate(cells, seconds, path)
+                ratios[k].append(uniform / mapped)
+    finally:
+        for path in files.values():
+            os.unlink(path)
+    return {k: sorted(v)[len(v) // 2] for k, v in ratios.items()}
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--cells", default="256,4096,65536")
+    ap.add_argument("--map", action="store_true", help="also measure the cost of a friction map")
     a = ap.parse_args()
+    print("building crawler-plant (cargo build --release -p crawler-plant-node) ...", file=sys.stderr)
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node"], check=True, cwd=ROOT)
     print("| N | Rust (cell updates/s) | NumPy (cell updates/s) | Rust / NumPy |")
     print("| ---: | ---: | ---: | ---: |")
     for n in [int(x) for x in a.cells.split(",")]:
         r, p = rust_rate(n, a.seconds), numpy_rate(n, a.seconds)
         print(f"| {n} | {r:.3e} | {p:.3e} | {r / p:.1f}x |", flush=True)
+    if a.map:
+        print("\n| N | time with ten patches / uniform | time with a texture / uniform |")
+        print("| ---: | ---: | ---: |")
+        for n in [int(x) for x in a.cells.split(",")]:
+            c = map_cost(n, a.seconds)
+            print(f"| {n} | {c['patches']:.3f} | {c['texture']:.3f} |", flush=True)
 
 
 if __name__ == "__main__":
