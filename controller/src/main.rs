@@ -99,6 +99,9 @@ struct RunArgs {
     /// Print the final summary as JSON.
     #[arg(long)]
     json: bool,
+    /// Validate every input (policy, scenario, options, network) and exit without joining a run.
+    #[arg(long)]
+    check: bool,
 }
 
 #[derive(Args)]
@@ -221,6 +224,20 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
         .map(ModelChoice::parse)
         .transpose()
         .map_err(anyhow::Error::msg)?;
+    crawler_controller::policies::lookup(&a.policy)?;
+    anyhow::ensure!(
+        a.margin.is_finite() && (0.0..0.5).contains(&a.margin),
+        "invalid --margin = {}: allowed 0 <= margin < 0.5",
+        a.margin
+    );
+    if a.check {
+        eprintln!(
+            "crawler-controller: inputs valid (policy {}, {})",
+            a.policy,
+            network.describe()
+        );
+        return Ok(Exit::Finished.into());
+    }
     let options = PolicyOptions {
         f0: a.f0,
         k: a.k,

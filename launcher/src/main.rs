@@ -15,6 +15,8 @@ use std::time::{Duration, Instant};
 use clap::{Args, Parser, Subcommand};
 use crawler_cli::Exit;
 
+mod preflight;
+
 #[derive(Parser)]
 #[command(
     name = "crawler",
@@ -129,41 +131,43 @@ fn sweep(args: &[String]) -> anyhow::Result<ExitCode> {
     }
 }
 
-/// The directory of the sibling binaries, building them first when run through `cargo run`.
+/// The directory of the sibling binaries. Through `cargo run` they are brought up to date first
+/// (`cargo build` is a no-op when they are fresh), so a policy added to the controller is the
+/// one that runs; otherwise they must sit next to this program.
 fn binaries() -> anyhow::Result<PathBuf> {
     let exe = std::env::current_exe()?;
     let dir = exe.parent().map(Path::to_path_buf).unwrap_or_default();
+    if let Ok(cargo) = std::env::var("CARGO") {
+        let profile_release = dir.ends_with("release");
+        let mut cmd = Command::new(cargo);
+        cmd.arg("build").arg("--bins");
+        if profile_release {
+            cmd.arg("--release");
+        }
+        // The packages of BINARIES.
+        for p in ["crawler-plant-node", "crawler-controller", "crawler-bridge"] {
+            cmd.args(["-p", p]);
+        }
+        eprintln!(
+            "crawler: bringing {} up to date ({}cargo build; nothing to do when they are fresh)",
+            BINARIES.join(", "),
+            if profile_release { "release " } else { "" }
+        );
+        let status = cmd.status()?;
+        anyhow::ensure!(status.success(), "building the binaries failed");
+        return Ok(dir);
+    }
     let missing: Vec<&str> = BINARIES
         .iter()
         .copied()
         .filter(|b| !dir.join(b).is_file())
         .collect();
-    if missing.is_empty() {
-        return Ok(dir);
-    }
-    let Ok(cargo) = std::env::var("CARGO") else {
-        anyhow::bail!(
-            "{} not found next to {}; build them with: cargo build --release --workspace",
-            missing.join(", "),
-            exe.display()
-        );
-    };
-    eprintln!(
-        "crawler: building {} (first run only) ...",
-        missing.join(", ")
+    anyhow::ensure!(
+        missing.is_empty(),
+        "{} not found next to {}; build them with: cargo build --release --workspace",
+        missing.join(", "),
+        exe.display()
     );
-    let profile_release = dir.ends_with("release");
-    let mut cmd = Command::new(cargo);
-    cmd.arg("build").arg("--bins");
-    if profile_release {
-        cmd.arg("--release");
-    }
-    // The packages of BINARIES.
-    for p in ["crawler-plant-node", "crawler-controller", "crawler-bridge"] {
-        cmd.args(["-p", p]);
-    }
-    let status = cmd.status()?;
-    anyhow::ensure!(status.success(), "building the binaries failed");
     Ok(dir)
 }
 
@@ -208,7 +212,15 @@ fn spawn(
     args: &[String],
     needle: Option<(&'static str, std::sync::mpsc::Sender<()>)>,
 ) -> anyhow::Result<Proc> {
-    let mut child = Command::new(exe)
+    let mut cmd = Command::new(exe);
+    // Each process in its own process group: Ctrl-C in a terminal reaches the launcher alone,
+    // which stops the run in order (controller, plant, recorder) and exits 130.
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        cmd.process_group(0);
+    }
+    let mut child = cmd
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -287,8 +299,13 @@ fn first_failure(procs: &mut [&mut Proc]) -> Option<(&'static str, Option<i32>)>
 /// Stops every process after `failed` ended with a failure; the exit status of the launcher.
 fn stop_all(failed: (&'static str, Option<i32>), procs: &mut [&mut Proc]) -> ExitCode {
     let (name, code) = failed;
+    let what = if Exit::Interrupted.is(code) {
+        "was interrupted"
+    } else {
+        "failed"
+    };
     let code = code.map_or_else(|| "a signal".to_string(), |c| format!("exit code {c}"));
-    eprintln!("crawler: the {name} failed ({code}; its messages are above); stopping the others");
+    eprintln!("crawler: the {name} {what} ({code}; its messages are above); stopping the others");
     for p in procs.iter_mut() {
         if p.ended().is_none() {
             interrupt(&p.child);
@@ -326,6 +343,8 @@ fn interrupt(child: &Child) {
 }
 
 fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
+    preflight::check_out(&a.out)?;
+    preflight::check_every(a.every)?;
     let dir = binaries()?;
     let interrupted = Arc::new(AtomicBool::new(false));
     {
@@ -375,6 +394,13 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         "--idle-timeout".into(),
         "300".into(),
     ];
+    // Every input is checked by the program that owns it before anything starts.
+    preflight::check_child("plant", &dir.join("crawler-plant"), &plant_args)?;
+    preflight::check_child("controller", &dir.join("crawler-controller"), &ctl_args)?;
+    if interrupted.load(Ordering::SeqCst) {
+        eprintln!("crawler: interrupted before the run started");
+        return Ok(Exit::Interrupted.into());
+    }
     eprintln!(
         "crawler: run {run_id}: recorder, plant and controller on loopback; recording to {}",
         a.out.display()
@@ -395,11 +421,11 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         if ready_rx.try_recv().is_ok() {
             break;
         }
-        if let Some(failed) = first_failure(&mut [&mut plant, &mut bridge]) {
-            return Ok(stop_all(failed, &mut [&mut plant, &mut bridge]));
-        }
         if interrupted.load(Ordering::SeqCst) {
             return Ok(stop_interrupted(&mut [&mut plant, &mut bridge]));
+        }
+        if let Some(failed) = first_failure(&mut [&mut plant, &mut bridge]) {
+            return Ok(stop_all(failed, &mut [&mut plant, &mut bridge]));
         }
         if Instant::now() >= connect_by {
             eprintln!(
@@ -417,18 +443,18 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     )?;
     // Supervise until the plant ends: if any process fails first, stop the others at once.
     loop {
+        if interrupted.load(Ordering::SeqCst) {
+            return Ok(stop_interrupted(&mut [
+                &mut controller,
+                &mut plant,
+                &mut bridge,
+            ]));
+        }
         if let Some(failed) = first_failure(&mut [&mut plant, &mut controller, &mut bridge]) {
             return Ok(stop_all(
                 failed,
                 &mut [&mut plant, &mut controller, &mut bridge],
             ));
-        }
-        if interrupted.load(Ordering::SeqCst) {
-            return Ok(stop_interrupted(&mut [
-                &mut plant,
-                &mut controller,
-                &mut bridge,
-            ]));
         }
         if plant.ended().is_some() {
             break;

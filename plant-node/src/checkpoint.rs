@@ -43,9 +43,18 @@ impl Checkpoint {
         framing::encode(MAGIC, VERSION, self)
     }
 
-    /// Writes the checkpoint atomically (a temporary file renamed over `path`).
+    /// Writes the checkpoint atomically (a temporary file renamed over `path`), creating its
+    /// directory if needed.
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
         let bytes = self.to_bytes();
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| {
+                anyhow::anyhow!(
+                    "cannot create the checkpoint's directory {}: {e}",
+                    dir.display()
+                )
+            })?;
+        }
         let tmp = path.with_extension("ckpt.tmp");
         std::fs::write(&tmp, &bytes)
             .map_err(|e| anyhow::anyhow!("cannot write checkpoint {}: {e}", tmp.display()))?;

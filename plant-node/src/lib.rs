@@ -11,10 +11,12 @@
 //! - [`runner`]: the lockstep state machine on the plant's fixed-step clock, over an inbox and an
 //!   outbox (the link, or channels in tests);
 //! - [`checkpoint`]: a stopped run (plant state, scenario, bookkeeping), resumed bit-identically;
-//! - [`bench`]: cell updates per second of the stepping loop (`crawler-plant bench`).
+//! - [`bench`]: cell updates per second of the stepping loop (`crawler-plant bench`);
+//! - [`preflight`]: what a run costs and where it really ends, said before it starts.
 
 pub mod admission;
 pub mod bench;
 pub mod checkpoint;
 pub mod link;
+pub mod preflight;
 pub mod runner;

@@ -41,9 +41,14 @@ struct RunArgs {
     /// Resume a stopped run from its checkpoint (the checkpoint's scenario and run id are used).
     #[arg(long, value_name = "CHECKPOINT", conflicts_with = "scenario")]
     resume: Option<std::path::PathBuf>,
-    /// Where to write the checkpoint if the run stops early (default: crawler-<run-id>.ckpt).
+    /// Where to write the checkpoint if the run stops early (default:
+    /// runs/<run-id>/plant.ckpt, directories created as needed).
     #[arg(long, value_name = "FILE")]
     checkpoint: Option<std::path::PathBuf>,
+    /// Validate every input (scenario, resume file, checkpoint path, network options), print
+    /// what the run will cost, and exit without starting it.
+    #[arg(long)]
+    check: bool,
     /// Seconds to wait for a controller to join.
     #[arg(long, default_value_t = 60.0)]
     wait_timeout: f64,
@@ -156,15 +161,26 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
     ctrlc::set_handler(move || {
         let _ = interrupt.send(Control::Interrupt);
     })?;
-    let checkpoint = a
-        .checkpoint
-        .clone()
-        .unwrap_or_else(|| format!("crawler-{}.ckpt", network.run_id).into());
+    let checkpoint = a.checkpoint.clone().unwrap_or_else(|| {
+        std::path::Path::new("runs")
+            .join(&network.run_id)
+            .join("plant.ckpt")
+    });
+    check_checkpoint_path(&checkpoint)?;
+    let wait_timeout = seconds("wait-timeout", a.wait_timeout)?;
+    let step_timeout = seconds("step-timeout", a.step_timeout)?;
+    for note in crawler_plant_node::preflight::notes(&scenario) {
+        eprintln!("crawler-plant: {note}");
+    }
+    if a.check {
+        eprintln!("crawler-plant: inputs valid ({})", network.describe());
+        return Ok(Exit::Finished.into());
+    }
     let opts = RunOptions {
         scenario,
         network,
-        wait_timeout: seconds("wait-timeout", a.wait_timeout)?,
-        step_timeout: seconds("step-timeout", a.step_timeout)?,
+        wait_timeout,
+        step_timeout,
         checkpoint,
         resume,
         max_episodes: a.max_episodes,
@@ -196,11 +212,38 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
     }
 }
 
+/// A checkpoint path the plant can write when the run stops: not a directory, and its
+/// directory exists or can be created. Nothing is created or truncated here.
+fn check_checkpoint_path(path: &std::path::Path) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !path.is_dir(),
+        "invalid --checkpoint = {}: a directory; allowed a file path",
+        path.display()
+    );
+    let mut dir = path.parent();
+    while let Some(d) = dir.filter(|d| !d.as_os_str().is_empty()) {
+        if d.exists() {
+            anyhow::ensure!(
+                d.is_dir(),
+                "invalid --checkpoint = {}: {} is not a directory",
+                path.display(),
+                d.display()
+            );
+            break;
+        }
+        dir = d.parent();
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Run(_) => unreachable!("handled by dispatch"),
         Command::Simulate(a) => {
             let scenario = a.scenario.load()?;
+            for note in crawler_plant_node::preflight::notes(&scenario) {
+                eprintln!("crawler-plant: {note}");
+            }
             let bar = crawler_cli::progress::bar(0, "simulating");
             let mut show = |done: u64, total: u64| {
                 bar.set_length(total);

@@ -273,7 +273,37 @@ pub struct Scenario {
     pub min_stick_periods: f64,
 }
 
+/// How big a run of a scenario is, known before it starts.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RunSize {
+    /// Communication steps to the end of the run.
+    pub macro_steps: u64,
+    /// Internal (leapfrog) steps to the end of the run.
+    pub internal_steps: u64,
+    /// Cells times internal steps: the work of the run.
+    pub cell_updates: f64,
+    /// The time the run actually ends, s: the first communication point at or after `t_end`.
+    pub t_end: f64,
+    /// The communication step `H`, s.
+    pub step: f64,
+}
+
 impl Scenario {
+    /// The size of a run of this scenario to its `t_end` (the discretisation exists: the
+    /// scenario was validated).
+    pub fn run_size(&self) -> Result<RunSize, ParamError> {
+        let d = self.plant.discretisation()?;
+        let macro_steps = d.steps_until(self.t_end);
+        let internal_steps = macro_steps.saturating_mul(d.substeps);
+        Ok(RunSize {
+            macro_steps,
+            internal_steps,
+            cell_updates: internal_steps as f64 * self.plant.numerics.cells as f64,
+            t_end: macro_steps as f64 * d.step,
+            step: d.step,
+        })
+    }
+
     /// The same scenario driven by another wave. The body stays as it is, unless `length` is
     /// given (the paper's convention of a body one wavelength long is `Some(2 pi / k)`); the
     /// stick threshold and the averaging block follow the new period. The wave must fit the body.

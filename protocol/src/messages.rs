@@ -15,7 +15,8 @@ pub const PROTOCOL_VERSION: u16 = 1;
 /// Largest payload accepted on any key, bytes (checked before decoding).
 pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
 
-/// Largest number of cells a co-simulation carries.
+/// Largest number of cells a co-simulation carries, and the one cell limit of the whole project
+/// (the plant library re-exports it as `crawler_plant::params::MAX_CELLS`).
 pub const MAX_CELLS: usize = 1 << 20;
 
 /// Longest identifier or name accepted in a message.

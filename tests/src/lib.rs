@@ -200,6 +200,8 @@ impl Proc {
         let child = Command::new(exe)
             .args(args)
             .current_dir(dir)
+            // not `cargo run`: the launcher must not rebuild the binaries under test
+            .env_remove("CARGO")
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(&out).expect("stdout file"))
             .stderr(std::fs::File::create(&err).expect("stderr file"))

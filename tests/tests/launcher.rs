@@ -1,8 +1,144 @@
 //! The one command: `crawler run` starts plant, controller and bridge and leaves a recording.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crawler_e2e::{bin, read_recording, Proc, Run};
+
+/// `crawler ARGS` in the run's directory, its own process group (as a shell runs a job).
+fn launcher(run: &Run, args: &[&str]) -> std::process::Child {
+    use std::os::unix::process::CommandExt;
+    let mut args: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+    args.extend(["--run-id".into(), run.id.clone()]);
+    std::process::Command::new(bin("crawler"))
+        .arg("run")
+        .args(&args)
+        .current_dir(run.dir.path())
+        .env_remove("CARGO")
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::fs::File::create(run.path("launcher.err")).unwrap())
+        .process_group(0)
+        .spawn()
+        .unwrap()
+}
+
+/// Waits at most `timeout` for `child`; kills its whole process group if it does not end.
+fn wait_group(run: &Run, child: &mut std::process::Child, timeout: Duration) -> Option<i32> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s.code();
+        }
+        if Instant::now() > deadline {
+            // the launcher's group, and its children (each in its own group) by their run id
+            let _ = std::process::Command::new("kill")
+                .args(["-KILL", "--", &format!("-{}", child.id())])
+                .status();
+            let _ = std::process::Command::new("pkill")
+                .args(["-KILL", "-f", &run.id])
+                .status();
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!(
+                "crawler run did not end within {timeout:?}: {}",
+                std::fs::read_to_string(run.path("launcher.err")).unwrap_or_default()
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_refused_start_leaves_an_existing_recording_untouched() {
+    let run = Run::new("keep");
+    let keep = run.path("keep.rrd");
+    let bytes: Vec<u8> = (0..100_000u32).map(|i| (i % 251) as u8).collect();
+    std::fs::write(&keep, &bytes).unwrap();
+    let out = keep.display().to_string();
+    for (args, needle) in [
+        (vec!["--policy", "nosuch"], "unknown policy \"nosuch\""),
+        (vec!["--cells", "3"], "numerics.cells"),
+        (vec!["--t-end", "0"], "t_end"),
+        (vec!["--resume", "/nonexistent.ckpt"], "checkpoint"),
+        (vec!["--every", "0"], "--every"),
+        (
+            vec!["--scenario", "/nonexistent.toml"],
+            "cannot read scenario",
+        ),
+    ] {
+        let mut all = args.clone();
+        all.extend(["--out", &out]);
+        let mut child = launcher(&run, &all);
+        let code = wait_group(&run, &mut child, Duration::from_secs(60));
+        let err = std::fs::read_to_string(run.path("launcher.err")).unwrap();
+        assert_ne!(code, Some(0), "{args:?} should fail: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(
+            !err.contains("recorder, plant and controller on loopback"),
+            "{args:?} started processes: {err}"
+        );
+        assert_eq!(
+            std::fs::read(&keep).unwrap(),
+            bytes,
+            "{args:?} touched the recording"
+        );
+    }
+    // a directory is not a recording
+    let mut child = launcher(&run, &["--out", &run.dir.path().display().to_string()]);
+    assert_ne!(
+        wait_group(&run, &mut child, Duration::from_secs(60)),
+        Some(0)
+    );
+    let err = std::fs::read_to_string(run.path("launcher.err")).unwrap();
+    assert!(
+        err.contains("invalid --out") && err.contains("directory"),
+        "{err}"
+    );
+}
+
+#[test]
+fn ctrl_c_in_a_terminal_stops_the_run_and_exits_130() {
+    let run = Run::new("ctrlc");
+    let rrd = run.path("c.rrd");
+    let out = rrd.display().to_string();
+    let mut child = launcher(&run, &["--policy", "wave", "--t-end", "600", "--out", &out]);
+    // wait until the run is stepping
+    let t0 = Instant::now();
+    let err = || std::fs::read_to_string(run.path("launcher.err")).unwrap_or_default();
+    while !err().contains("joined run") {
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "the run did not start: {}",
+            err()
+        );
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "ended early: {}",
+            err()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    // SIGINT to the whole foreground process group, as a terminal's Ctrl-C does
+    let pgid = child.id();
+    assert!(std::process::Command::new("kill")
+        .args(["-INT", "--", &format!("-{pgid}")])
+        .status()
+        .unwrap()
+        .success());
+    let code = wait_group(&run, &mut child, Duration::from_secs(90));
+    let e = err();
+    assert_eq!(code, Some(130), "{e}");
+    assert!(e.contains("crawler: interrupted"), "{e}");
+    assert!(!e.contains("failed"), "{e}");
+    // the plant wrote its checkpoint; the recording is readable and holds the run so far
+    assert!(
+        run.path(&format!("runs/{}/plant.ckpt", run.id)).is_file(),
+        "no checkpoint: {e}"
+    );
+    let rec = read_recording(&rrd).unwrap();
+    assert!(rec.entity("tail/plant").rows > 10);
+}
 
 #[test]
 fn one_command_runs_the_whole_cosimulation() {
@@ -116,6 +252,11 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
     check(
         "crawler-controller",
         &["run", "--policy", "nope", "--wait-timeout", "1"],
+        "unknown policy \"nope\"",
+    );
+    check(
+        "crawler-controller",
+        &["run", "--wait-timeout", "1"],
         "no plant answered",
     );
     check("crawler-bridge", &["record", "--every", "0"], "--every");

@@ -45,10 +45,10 @@ pub const REGISTRY: &[(&str, &str, Factory)] = &[
     ),
 ];
 
-/// The controller registered as `name`.
-pub fn build(name: &str, ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
+/// The factory registered as `name`, or an error naming the policies there are.
+pub fn lookup(name: &str) -> anyhow::Result<Factory> {
     match REGISTRY.iter().find(|(n, _, _)| *n == name) {
-        Some((_, _, factory)) => factory(ctx),
+        Some((_, _, factory)) => Ok(*factory),
         None => anyhow::bail!(
             "unknown policy {name:?}: allowed {}",
             REGISTRY
@@ -58,4 +58,9 @@ pub fn build(name: &str, ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
                 .join(", ")
         ),
     }
+}
+
+/// The controller registered as `name`.
+pub fn build(name: &str, ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
+    lookup(name)?(ctx)
 }
