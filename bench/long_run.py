@@ -38,6 +38,7 @@ def main():
     ap.add_argument("--every", type=int, default=1)
     ap.add_argument("--keep", action="store_true")
     a = ap.parse_args()
+    print("long_run: building plant, controller and bridge (cargo build --release) ...", file=sys.stderr)
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
                     "-p", "crawler-bridge"], check=True, cwd=ROOT)
     work = tempfile.mkdtemp(prefix="crawler-long-")

@@ -19,6 +19,7 @@ TARGET = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
 
 
 def main():
+    print("optimizer_bench: building crawler-controller (cargo build --release) ...", file=sys.stderr)
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-controller"], check=True, cwd=ROOT)
     exe = os.path.join(TARGET, "release", "crawler-controller")
     r = json.loads(subprocess.run([exe, "bench"], check=True, capture_output=True, text=True).stdout)

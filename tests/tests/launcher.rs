@@ -58,6 +58,8 @@ fn a_refused_start_leaves_an_existing_recording_untouched() {
     for (args, needle) in [
         (vec!["--policy", "nosuch"], "unknown policy \"nosuch\""),
         (vec!["--cells", "3"], "numerics.cells"),
+        // above the one cell limit: refused up front, not after 90 s of "invalid model description"
+        (vec!["--cells", "10000000"], "numerics.cells"),
         (vec!["--t-end", "0"], "t_end"),
         (vec!["--resume", "/nonexistent.ckpt"], "checkpoint"),
         (vec!["--every", "0"], "--every"),
