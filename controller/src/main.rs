@@ -393,6 +393,23 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
             BodyLength::OneWavelength
         },
     };
+    // a bad value from a flag is named by the flag and the key it sets
+    let flags = [
+        ("task.distance", "--distance", a.distance.is_some()),
+        ("task.energy", "--energy", a.energy.is_some()),
+        ("task.sigma_max", "--sigma-max", a.sigma_max.is_some()),
+        ("limits.strain_max", "--strain-max", a.strain_max.is_some()),
+        ("limits.f0_max", "--f0-max", a.f0_max.is_some()),
+        ("limits.omega", "--omega-range", a.omega_range.is_some()),
+        ("limits.k", "--k-range", a.k_range.is_some()),
+    ];
+    problem.validate().map_err(|mut e| {
+        let key = e.field.split('[').next().unwrap_or_default().to_string();
+        if let Some((_, flag, _)) = flags.iter().find(|(k, _, given)| *given && *k == key) {
+            e.field = format!("{flag} ({})", e.field);
+        }
+        e
+    })?;
     let default_points = match model {
         ModelChoice::Paper => 200,
         _ => 32,

@@ -55,6 +55,18 @@ fn a_bad_flag_is_named_as_the_flag_and_the_key_it_sets() {
             ],
             "invalid --alpha (actuation.alpha) = -2",
         ),
+        (
+            vec!["optimize", "--energy", "-1"],
+            "invalid --energy (task.energy) = -1",
+        ),
+        (
+            vec!["optimize", "--k-range", "0,10"],
+            "invalid --k-range (limits.k[0]) = 0",
+        ),
+        (
+            vec!["optimize", "--tie-tolerance", "0.5"],
+            "invalid tie tolerance (--tie-tolerance) = 0.5",
+        ),
     ] {
         let out = controller().args(&args).output().unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
