@@ -858,6 +858,27 @@ fn fig6(scenario: &Scenario, out: &Path, opts: FigureOptions) -> anyhow::Result<
     Ok(files)
 }
 
+/// The colour scale of a Fig. 6(b) panel, m/s: from the slowest cell where the budget binds to
+/// the fastest cell. The budget's cells, whose speed depends on `k` alone, differ by about 2 %
+/// (paper's parameters); a scale from 0 would paint them all in its top colour. Slower cells
+/// (where the strain limit binds) get the darkest colour, and the legend says so.
+fn constrained_colour_range(cells: &[crate::optimizer::Cell]) -> (f64, f64) {
+    let budget = cells
+        .iter()
+        .filter(|c| c.binding == Binding::Mileage)
+        .filter_map(|c| c.velocity);
+    let (lo, hi) = bounds(budget);
+    let top = cells
+        .iter()
+        .filter_map(|c| c.velocity)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if lo.is_finite() {
+        (lo, top.max(hi))
+    } else {
+        bounds(cells.iter().filter_map(|c| c.velocity))
+    }
+}
+
 /// The Fig. 6(b) panel of an optimiser report.
 fn constrained_plane<'a>(
     mname: &str,
@@ -883,23 +904,7 @@ fn constrained_plane<'a>(
         .collect();
     let o = &r.optimum;
     let t = &r.tie_break;
-    // the colour scale spans the cells where the budget binds, whose speed depends on k alone
-    let budget = r
-        .cells
-        .iter()
-        .filter(|c| c.binding == Binding::Mileage)
-        .filter_map(|c| c.velocity);
-    let (lo, hi) = bounds(budget);
-    let top = r
-        .cells
-        .iter()
-        .filter_map(|c| c.velocity)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let range = if lo.is_finite() {
-        (lo, top.max(hi))
-    } else {
-        bounds(r.cells.iter().filter_map(|c| c.velocity))
-    };
+    let range = constrained_colour_range(&r.cells);
     let names = [
         "budget M = D/J0 binds",
         "stress limit binds",
@@ -1062,6 +1067,9 @@ type PlaneChart<'a, 'b> = ChartContext<
     Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
 >;
 
+/// Width of one character of a region's name (16 px sans-serif, generous), px.
+const NAME_CHAR_PX: f64 = 9.5;
+
 /// Outlines in white the regions of cells with equal `region`, and names each at its centre.
 fn draw_regions(
     chart: &mut PlaneChart,
@@ -1091,6 +1099,9 @@ fn draw_regions(
             .into_iter()
             .map(|e| PathElement::new(e.to_vec(), WHITE.stroke_width(2))),
     )?;
+    let x_range = chart.x_range();
+    let w_per_px =
+        (x_range.end - x_range.start) / chart.plotting_area().dim_in_pixel().0.max(1) as f64;
     for (id, name) in names.iter().enumerate() {
         let (mut sw, mut sk, mut count) = (0.0, 0.0, 0usize);
         for (c, &r) in region.iter().enumerate() {
@@ -1103,7 +1114,13 @@ fn draw_regions(
         if count * 150 < region.len() {
             continue; // too small a region to hold its name
         }
-        let at = (sw / count as f64, sk / count as f64);
+        // at the region's centre, moved inwards where the name would cross the plot's edge
+        let half = 0.5 * NAME_CHAR_PX * name.chars().count() as f64 * w_per_px;
+        let (lo, hi) = (x_range.start + half, x_range.end - half);
+        let at = (
+            (sw / count as f64).clamp(lo.min(hi), hi.max(lo)),
+            sk / count as f64,
+        );
         chart.draw_series(std::iter::once(Text::new(
             name.to_string(),
             at,
@@ -1144,4 +1161,94 @@ fn draw_colour_bar(
         Rectangle::new([(0.0, v), (1.0, v + dv)], color_of(v + 0.5 * dv).filled())
     }))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paper's Fig. 6(b) problem on a coarse grid, with the paper's model.
+    fn paper_fig6b() -> OptimizeReport {
+        let scenario = Scenario::paper();
+        let base = OperatingPoint {
+            wavelengths: 1.0,
+            ..OperatingPoint::of(&scenario)
+        };
+        let problem = Problem {
+            body: base.body,
+            friction: base.friction,
+            task: scenario.task,
+            limits: scenario.limits,
+            body_length: BodyLength::OneWavelength,
+        };
+        problem
+            .optimize(
+                &ModelChoice::Paper,
+                &GridSpec {
+                    omega_points: 24,
+                    k_points: 24,
+                    refine: false,
+                    tie_tolerance: DEFAULT_TIE_TOLERANCE,
+                },
+            )
+            .unwrap()
+    }
+
+    #[test]
+    fn the_constrained_panel_shows_the_dependence_on_k() {
+        // Where the budget binds, V depends on k alone and spans a few per cent: the colour
+        // scale must resolve it, the shortest and the longest waves at opposite ends of the bar.
+        let r = paper_fig6b();
+        let (lo, hi) = constrained_colour_range(&r.cells);
+        assert!(lo > 0.0 && hi > lo, "{lo} .. {hi}");
+        let budget: Vec<_> = r
+            .cells
+            .iter()
+            .filter(|c| c.binding == Binding::Mileage)
+            .collect();
+        assert!(budget.len() > r.cells.len() / 4, "{} cells", budget.len());
+        let at = |c: &crate::optimizer::Cell| (c.velocity.unwrap() - lo) / (hi - lo);
+        let k_min = budget.iter().map(|c| c.k).fold(f64::INFINITY, f64::min);
+        let k_max = budget.iter().map(|c| c.k).fold(f64::NEG_INFINITY, f64::max);
+        for c in &budget {
+            let t = at(c);
+            assert!((0.0..=1.0 + 1e-12).contains(&t), "{t}");
+            if c.k == k_min {
+                assert!(t < 0.1, "longest wave at {t} of the bar");
+            }
+            if c.k == k_max {
+                assert!(t > 0.9, "shortest wave at {t} of the bar");
+            }
+        }
+        // and the panel marks the optimum the report chose
+        let omegas = r.omega_grid.clone();
+        let ks = r.k_grid.clone();
+        let plane = constrained_plane("paper", &r, &omegas, &ks, 1.0);
+        let ((w, k), label) = plane.mark.expect("the optimum is marked");
+        assert_eq!((w, k), (r.optimum.omega, r.optimum.k));
+        assert!(label.starts_with("optimum: V = "), "{label}");
+        assert_eq!(plane.range, (lo, hi));
+    }
+
+    #[test]
+    fn the_status_of_a_prediction_decides_whether_its_mileage_is_drawn() {
+        let scenario = Scenario::paper();
+        let base = OperatingPoint {
+            wavelengths: 1.0,
+            ..OperatingPoint::of(&scenario)
+        };
+        // far below resonance the paper's model predicts backward motion (docs/physics.md §3.2):
+        // Fig. 5 must not draw a mileage there
+        let slow = ModelChoice::Paper.predict(&base.with_wave(Wave {
+            omega: 10.0,
+            ..base.wave
+        }));
+        assert!(slow.velocity.unwrap() < 0.0, "{:?}", slow.velocity);
+        assert_eq!(Status::of(&slow), Status::Backward);
+        assert_eq!(Status::of(&slow).mileage(&slow), None);
+        let fast = ModelChoice::Paper.predict(&base);
+        assert_eq!(Status::of(&fast), Status::Forward);
+        assert_eq!(Status::of(&fast).mileage(&fast), fast.mileage);
+        assert!(fast.mileage.unwrap() > 0.0);
+    }
 }
