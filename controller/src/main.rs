@@ -372,7 +372,8 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
     let pair = |name: &str, r: &Vec<f64>| -> anyhow::Result<[f64; 2]> {
         anyhow::ensure!(
             r.len() == 2,
-            "invalid --{name} = {r:?}: allowed MIN,MAX (two numbers)"
+            "invalid --{name} = {}: allowed MIN,MAX (two numbers)",
+            r.iter().map(f64::to_string).collect::<Vec<_>>().join(",")
         );
         Ok([r[0], r[1]])
     };
@@ -420,6 +421,11 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
         refine: !a.no_refine,
         tie_tolerance: a.tie_tolerance,
     };
+    anyhow::ensure!(
+        (0.0..=0.1).contains(&grid.tie_tolerance),
+        "invalid --tie-tolerance = {}: allowed a relative speed tolerance in [0, 0.1]",
+        grid.tie_tolerance
+    );
     let started = std::time::Instant::now();
     let report = problem.optimize(&model, &grid)?;
     let elapsed = started.elapsed().as_secs_f64();

@@ -643,7 +643,7 @@ impl Problem {
         let tol = grid.tie_tolerance;
         if !(0.0..=0.1).contains(&tol) {
             return Err(crawler_plant::ParamError::new(
-                "tie tolerance (--tie-tolerance)",
+                "grid.tie_tolerance",
                 tol,
                 "a relative speed tolerance in [0, 0.1]",
             )

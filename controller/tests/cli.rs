@@ -64,13 +64,20 @@ fn a_bad_flag_is_named_as_the_flag_and_the_key_it_sets() {
             "invalid --k-range (limits.k[0]) = 0",
         ),
         (
+            vec!["optimize", "--omega-range", "5"],
+            "invalid --omega-range = 5: allowed MIN,MAX (two numbers)",
+        ),
+        (
             vec!["optimize", "--tie-tolerance", "0.5"],
-            "invalid tie tolerance (--tie-tolerance) = 0.5",
+            "invalid --tie-tolerance = 0.5: allowed a relative speed tolerance in [0, 0.1]",
         ),
     ] {
         let out = controller().args(&args).output().unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
         assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        // and what would have been allowed
+        assert!(stderr.contains(": allowed "), "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
     }
 }

@@ -360,7 +360,7 @@ fn bad_problems_are_refused_with_the_field_at_fault() {
             )
             .unwrap_err()
             .to_string();
-        assert!(e.contains("--tie-tolerance"), "{e}");
+        assert!(e.contains("invalid grid.tie_tolerance = "), "{e}");
     }
 }
 
