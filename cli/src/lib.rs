@@ -7,12 +7,15 @@
 //!   --omega --alpha --cells --t-end`);
 //! - [`progress`]: the progress bar of long runs;
 //! - [`exit`]: the one table of process exit codes;
-//! - [`cpu`]: stop with a clear message on a CPU that lacks the build's instructions.
+//! - [`cpu`]: stop with a clear message on a CPU that lacks the build's instructions;
+//! - [`stdout`]: results on standard output, where a closed pipe ends the output, not the program
+//!   with a panic.
 
 pub mod cpu;
 pub mod exit;
 pub mod progress;
 pub mod scenario_args;
+pub mod stdout;
 
 pub use exit::Exit;
 pub use scenario_args::ScenarioArgs;

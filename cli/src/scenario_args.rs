@@ -58,8 +58,91 @@ impl ScenarioArgs {
         }
     }
 
-    /// Loads the scenario with the overrides applied.
+    /// Loads the scenario with the overrides applied. An invalid value that came from a flag is
+    /// reported under the flag's name with the scenario key it overrides
+    /// (`invalid --eps (friction.eps) = NaN: ...`), not under the key alone.
     pub fn load(&self) -> Result<Scenario, ScenarioError> {
-        Scenario::load(self.scenario.as_deref(), &self.overrides())
+        Scenario::load(self.scenario.as_deref(), &self.overrides()).map_err(|e| match e {
+            ScenarioError::Invalid { origin, mut cause } => {
+                if let Some(flag) = self.flag_for(&cause.field) {
+                    cause.field = format!("{flag} ({})", cause.field);
+                }
+                ScenarioError::Invalid { origin, cause }
+            }
+            other => other,
+        })
+    }
+
+    /// The flag given on the command line that set the scenario key `field`, if any.
+    fn flag_for(&self, field: &str) -> Option<&'static str> {
+        [
+            ("friction.eps", "--eps", self.eps.is_some()),
+            ("friction.n_f", "--n-f", self.n_f.is_some()),
+            ("actuation.f0", "--f0", self.f0.is_some()),
+            ("actuation.k", "--k", self.k.is_some()),
+            ("actuation.omega", "--omega", self.omega.is_some()),
+            ("actuation.alpha", "--alpha", self.alpha.is_some()),
+            ("numerics.cells", "--cells", self.cells.is_some()),
+            ("numerics.t_end", "--t-end", self.t_end.is_some()),
+        ]
+        .into_iter()
+        .find(|&(key, _, given)| given && key == field)
+        .map(|(_, flag, _)| flag)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn error(args: ScenarioArgs) -> String {
+        args.load().unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_bad_flag_is_named_by_its_flag_and_its_key() {
+        let e = error(ScenarioArgs {
+            eps: Some(f64::NAN),
+            ..Default::default()
+        });
+        assert!(e.contains("invalid --eps (friction.eps) = NaN"), "{e}");
+        let e = error(ScenarioArgs {
+            n_f: Some(2.0),
+            ..Default::default()
+        });
+        assert!(e.contains("invalid --n-f (friction.n_f) = 2"), "{e}");
+        let e = error(ScenarioArgs {
+            cells: Some(1),
+            ..Default::default()
+        });
+        assert!(e.contains("invalid --cells (numerics.cells) = 1"), "{e}");
+        let e = error(ScenarioArgs {
+            alpha: Some(-1.0),
+            ..Default::default()
+        });
+        assert!(e.contains("invalid --alpha (actuation.alpha) = -1"), "{e}");
+        let e = error(ScenarioArgs {
+            t_end: Some(f64::INFINITY),
+            ..Default::default()
+        });
+        assert!(e.contains("invalid --t-end (numerics.t_end) = inf"), "{e}");
+    }
+
+    #[test]
+    fn a_bad_value_from_the_file_keeps_its_key() {
+        let dir = std::env::temp_dir().join(format!("crawler-cli-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bad.toml");
+        let text = crawler_plant::scenario::PAPER_TOML.replace("eps = 0.1", "eps = -0.5");
+        std::fs::write(&path, text).unwrap();
+        // --f0 is given but valid: the error is about the file's eps, named by its key only
+        let e = error(ScenarioArgs {
+            scenario: Some(path.clone()),
+            f0: Some(0.3),
+            ..Default::default()
+        });
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(e.contains("invalid friction.eps = -0.5"), "{e}");
+        assert!(!e.contains("--"), "{e}");
     }
 }

@@ -8,7 +8,9 @@ use crawler_plant::scenario::{Overrides, Scenario};
 use crawler_plant::simulate::{simulate, SimulateOptions};
 
 use crate::operating_point::OperatingPoint;
-use crate::optimizer::{set_threads, BodyLength, GridSpec, ModelChoice, Problem};
+use crate::optimizer::{
+    set_threads, BodyLength, GridSpec, ModelChoice, Problem, DEFAULT_TIE_TOLERANCE,
+};
 use crate::prediction::Model;
 use crate::travelling_wave::TravellingWaveModel;
 
@@ -75,6 +77,7 @@ pub fn run(scenario: &Scenario) -> anyhow::Result<BenchReport> {
         omega_points: 500,
         k_points: 500,
         refine: false,
+        tie_tolerance: DEFAULT_TIE_TOLERANCE,
     };
     let mut velocity = 0.0;
     set_threads(1);
@@ -111,6 +114,7 @@ pub fn run(scenario: &Scenario) -> anyhow::Result<BenchReport> {
                     omega_points: 24,
                     k_points: 24,
                     refine: true,
+                    tie_tolerance: DEFAULT_TIE_TOLERANCE,
                 },
             )
             .unwrap();
@@ -124,6 +128,7 @@ pub fn run(scenario: &Scenario) -> anyhow::Result<BenchReport> {
                     omega_points: 48,
                     k_points: 48,
                     refine: true,
+                    tie_tolerance: DEFAULT_TIE_TOLERANCE,
                 },
             )
             .unwrap();

@@ -3,7 +3,7 @@
 //! Models and controllers for the soft crawler of Gusty et al.:
 //!
 //! - [`paper_model`]: the paper's leading-order perturbation solution (eqs. 27-34), with its
-//!   misprints corrected (physics-notes §2) and validity reported instead of NaN.
+//!   misprints corrected (`docs/physics.md` §7) and validity reported instead of NaN.
 //! - [`travelling_wave`]: the improved reduced model, the exact travelling-wave steady state
 //!   with exact stick, as accurate as a converged plant at a tiny fraction of the cost.
 //! - [`optimizer`]: the constrained optimal open-loop policy (paper Sec. V) with explicit limits.

@@ -7,11 +7,21 @@ use serde_json::json;
 
 use crawler_cli::Exit;
 use crawler_cli::ScenarioArgs;
-use crawler_controller::optimizer::{BodyLength, GridSpec, ModelChoice, Problem};
+use crawler_controller::optimizer::{
+    BodyLength, GridSpec, ModelChoice, Problem, DEFAULT_TIE_TOLERANCE,
+};
 use crawler_controller::paper_model::{PaperModel, PaperTerms};
 use crawler_controller::policies::REGISTRY;
 use crawler_controller::verify;
 use crawler_controller::OperatingPoint;
+
+/// `println!` that returns the error instead of panicking: a reader that closed the pipe ends
+/// the output (`crawler_cli::stdout`).
+macro_rules! out {
+    ($($arg:tt)*) => {
+        crawler_cli::stdout::line(format_args!($($arg)*))?
+    };
+}
 
 #[derive(Parser)]
 #[command(
@@ -158,6 +168,10 @@ struct OptimizeArgs {
     /// Skip the local refinement of the best cell.
     #[arg(long)]
     no_refine: bool,
+    /// Cells within this relative speed of the fastest are tied; the tie goes to the lowest f0
+    /// (the optimum is a ridge: docs/physics.md §5.3). 0 takes the fastest cell.
+    #[arg(long, default_value_t = DEFAULT_TIE_TOLERANCE, allow_hyphen_values = true)]
+    tie_tolerance: f64,
     /// Run the in-process plant at the optimum and compare.
     #[arg(long)]
     verify: bool,
@@ -178,6 +192,7 @@ fn main() -> ExitCode {
     if let Command::Run(a) = cli.command {
         return match run_client(a) {
             Ok(code) => code,
+            Err(e) if crawler_cli::stdout::is_broken_pipe(e.as_ref()) => Exit::Finished.into(),
             Err(e) => {
                 eprintln!("crawler-controller: error: {e:#}");
                 Exit::Failure.into()
@@ -186,6 +201,8 @@ fn main() -> ExitCode {
     }
     match run(cli) {
         Ok(()) => Exit::Finished.into(),
+        // the reader of the output went away (`| head`): the output ends there
+        Err(e) if crawler_cli::stdout::is_broken_pipe(e.as_ref()) => Exit::Finished.into(),
         Err(e) => {
             eprintln!("crawler-controller: error: {e:#}");
             Exit::Failure.into()
@@ -264,9 +281,9 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
     match run(opts, rx)? {
         ClientOutcome::Finished(summary) => {
             if a.json {
-                println!("{}", serde_json::to_string_pretty(&summary)?);
+                out!("{}", serde_json::to_string_pretty(&summary)?);
             } else {
-                print!("{}", summary.table());
+                crawler_cli::stdout::text(summary.table())?;
             }
             Ok(Exit::Finished.into())
         }
@@ -294,18 +311,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 ..Default::default()
             };
             for f in crawler_controller::figures::write_figures(&scenario, &a.out, opts)? {
-                println!("{}", f.display());
+                out!("{}", f.display());
             }
             Ok(())
         }
         Command::Bench => {
             let r = crawler_controller::bench::run(&crawler_plant::scenario::Scenario::paper())?;
-            println!("{}", serde_json::to_string(&r)?);
+            out!("{}", serde_json::to_string(&r)?);
             Ok(())
         }
         Command::Policies => {
             for (name, help, _) in REGISTRY {
-                println!("{name:<10} {help}");
+                out!("{name:<10} {help}");
             }
             Ok(())
         }
@@ -345,7 +362,7 @@ fn predict(a: PredictArgs) -> anyhow::Result<()> {
         out["stress_eq30_as_printed"] = json!(PaperModel::stress_eq30(&op));
         out["resonance_velocity_eq34"] = json!(PaperModel::resonance_velocity(&op));
     }
-    println!("{}", serde_json::to_string_pretty(&out)?);
+    out!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
 }
 
@@ -372,7 +389,8 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
     let pair = |name: &str, r: &Vec<f64>| -> anyhow::Result<[f64; 2]> {
         anyhow::ensure!(
             r.len() == 2,
-            "invalid --{name} = {r:?}: allowed MIN,MAX (two numbers)"
+            "invalid --{name} = {}: allowed MIN,MAX (two numbers)",
+            r.iter().map(f64::to_string).collect::<Vec<_>>().join(",")
         );
         Ok([r[0], r[1]])
     };
@@ -393,6 +411,23 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
             BodyLength::OneWavelength
         },
     };
+    // a bad value from a flag is named by the flag and the key it sets
+    let flags = [
+        ("task.distance", "--distance", a.distance.is_some()),
+        ("task.energy", "--energy", a.energy.is_some()),
+        ("task.sigma_max", "--sigma-max", a.sigma_max.is_some()),
+        ("limits.strain_max", "--strain-max", a.strain_max.is_some()),
+        ("limits.f0_max", "--f0-max", a.f0_max.is_some()),
+        ("limits.omega", "--omega-range", a.omega_range.is_some()),
+        ("limits.k", "--k-range", a.k_range.is_some()),
+    ];
+    problem.validate().map_err(|mut e| {
+        let key = e.field.split('[').next().unwrap_or_default().to_string();
+        if let Some((_, flag, _)) = flags.iter().find(|(k, _, given)| *given && *k == key) {
+            e.field = format!("{flag} ({})", e.field);
+        }
+        e
+    })?;
     let default_points = match model {
         ModelChoice::Paper => 200,
         _ => 32,
@@ -401,7 +436,13 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
         omega_points: a.omega_points.unwrap_or(default_points),
         k_points: a.k_points.unwrap_or(default_points),
         refine: !a.no_refine,
+        tie_tolerance: a.tie_tolerance,
     };
+    anyhow::ensure!(
+        (0.0..=0.1).contains(&grid.tie_tolerance),
+        "invalid --tie-tolerance = {}: allowed a relative speed tolerance in [0, 0.1]",
+        grid.tie_tolerance
+    );
     let started = std::time::Instant::now();
     let report = problem.optimize(&model, &grid)?;
     let elapsed = started.elapsed().as_secs_f64();
@@ -432,12 +473,12 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
         out["seconds"] = json!(elapsed);
         out["verification"] = serde_json::to_value(&verification)?;
         out["certification"] = serde_json::to_value(&certification)?;
-        println!("{}", serde_json::to_string(&out)?);
+        out!("{}", serde_json::to_string(&out)?);
         return Ok(());
     }
     let o = &report.optimum;
     let p = &o.prediction;
-    println!(
+    out!(
         "optimum ({} model, {} x {} grid{}, {:.3} s): omega = {:.4} rad/s (alpha = {:.4}), k = {:.4} rad/m, f0 = {:.4} N",
         report.model,
         report.omega_grid.len(),
@@ -449,8 +490,28 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
         o.k,
         o.f0
     );
-    println!("  binding constraint: {:?}", o.binding);
-    println!(
+    out!(
+        "  body: {}; binding constraint: {:?}",
+        match report.body_length {
+            BodyLength::OneWavelength => "one wavelength of k (the paper's problem)".to_string(),
+            BodyLength::Fixed(l) => format!("fixed, {l} m ({} wavelengths)", o.wavelengths),
+        },
+        o.binding
+    );
+    let t = &report.tie_break;
+    out!(
+        "  ridge: {} grid cells within {} % of the fastest speed (spread {:.1e}, omega {:.1}..{:.1} rad/s, k {:.2}..{:.2} rad/m); \
+         chose the lowest f0 among them, giving up {:.1e} of the speed",
+        t.tied_cells,
+        100.0 * t.tolerance,
+        t.tied_speed_spread,
+        t.tied_omega[0],
+        t.tied_omega[1],
+        t.tied_k[0],
+        t.tied_k[1],
+        t.speed_given_up
+    );
+    out!(
         "  predicted: V = {:.5e} m/s, M = {:.5e} m/J (need {:.5e}), sigma = {:.5e} Pa, strain = {:.4}",
         p.velocity.unwrap_or(f64::NAN),
         p.mileage.unwrap_or(f64::NAN),
@@ -459,7 +520,7 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
         p.max_strain.unwrap_or(f64::NAN)
     );
     if let Some(v) = &verification {
-        println!(
+        out!(
             "  plant ({} cells): V = {:.5e} m/s ({:+.2} %), M = {:.5e} m/J ({:+.2} %), sigma = {:.5e} Pa ({:+.2} %), strain = {:.4}",
             v.cells,
             v.velocity.simulated,
@@ -470,7 +531,7 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
             100.0 * v.max_stress.relative_error.unwrap_or(f64::NAN),
             v.max_strain.simulated
         );
-        println!(
+        out!(
             "  constraints on the plant: mileage {}, stress {}, strain {}, f0 {}",
             ok(v.holds.mileage),
             ok(v.holds.stress),
@@ -485,7 +546,7 @@ fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
             .rev()
             .find(|r| (r.f0 - c.f0).abs() < 1e-15)
             .or(c.runs.last());
-        println!(
+        out!(
             "  certified: {} at f0 = {:.4} N after {} plant runs (margin {:.1} %); plant V = {:.5e} m/s",
             c.certified,
             c.f0,

@@ -8,6 +8,12 @@
 //! mileage condition reduces to `h(z) = z^2 (n_F - 2 asin(z) / pi) >= K(omega, k)` with
 //! `z = eps c_d n_F / (f0 k zeta R0 alpha)`, and `h` depends on `n_F` only, so each cell costs a
 //! few Newton steps.
+//!
+//! Where the mileage binds the speed hardly depends on `(omega, k)` (exactly not at all in the
+//! paper's model on a body of fixed length): the optimum is a ridge, not a point
+//! (`docs/physics.md` §5.2-5.3). Cells within a relative speed tolerance of the fastest are
+//! therefore ranked by a second criterion, the lowest amplitude `f0` (the weakest drive that
+//! achieves the speed), and the refinement follows the same order.
 
 use serde::Serialize;
 use std::f64::consts::{PI, TAU};
@@ -85,7 +91,10 @@ pub struct Problem {
     pub body_length: BodyLength,
 }
 
-/// Grid resolution.
+/// The default relative speed tolerance of the tie-break, well below the models' accuracy.
+pub const DEFAULT_TIE_TOLERANCE: f64 = 1e-3;
+
+/// Grid resolution and tie-break.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct GridSpec {
     /// Points in omega.
@@ -94,6 +103,54 @@ pub struct GridSpec {
     pub k_points: usize,
     /// Refine the best cell by a compass search.
     pub refine: bool,
+    /// Cells whose speed is within this share of the fastest are tied; among them the lowest
+    /// `f0` wins (`docs/physics.md` §5.3). In `[0, 0.1]`; 0 picks the fastest cell.
+    pub tie_tolerance: f64,
+}
+
+impl GridSpec {
+    /// A grid of `omega_points x k_points`, refined, with the default tie tolerance.
+    pub fn new(omega_points: usize, k_points: usize) -> Self {
+        Self {
+            omega_points,
+            k_points,
+            refine: true,
+            tie_tolerance: DEFAULT_TIE_TOLERANCE,
+        }
+    }
+}
+
+/// How the optimum was chosen among nearly equally fast cells.
+#[derive(Debug, Clone, Serialize)]
+pub struct TieBreak {
+    /// The second criterion.
+    pub criterion: &'static str,
+    /// Relative speed tolerance within which cells tie.
+    pub tolerance: f64,
+    /// The fastest speed found (grid and refinement), m/s.
+    pub fastest_velocity: f64,
+    /// Grid cells within the tolerance of the fastest grid cell.
+    pub tied_cells: usize,
+    /// `(max - min) / max` of the speeds of the tied cells.
+    pub tied_speed_spread: f64,
+    /// Smallest and largest `omega` among the tied cells, rad/s.
+    pub tied_omega: [f64; 2],
+    /// Smallest and largest `k` among the tied cells, rad/m.
+    pub tied_k: [f64; 2],
+    /// `1 - V / fastest_velocity` at the optimum: the speed given up for the lower `f0`.
+    pub speed_given_up: f64,
+}
+
+/// Orders candidate `(velocity, f0)` pairs: within `tol` of the fastest speed `top` the lower
+/// `f0` is better, otherwise the faster.
+fn better(a: (f64, f64), b: (f64, f64), top: f64, tol: f64) -> bool {
+    let floor = top * (1.0 - tol);
+    match (a.0 >= floor, b.0 >= floor) {
+        (true, true) => a.1 < b.1 * (1.0 - 1e-12) || (a.1 <= b.1 && a.0 > b.0),
+        (true, false) => true,
+        (false, true) => false,
+        (false, false) => a.0 > b.0,
+    }
 }
 
 /// Which constraint fixes `f0` at a cell.
@@ -112,6 +169,81 @@ pub enum Binding {
     Infeasible,
 }
 
+/// Why no amplitude is feasible at a cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Infeasibility {
+    /// No amplitude meets the mileage budget `M >= D / J0`.
+    Mileage,
+    /// The stress limit keeps `f0` below every amplitude that meets the budget moving forward.
+    Stress,
+    /// The strain limit does.
+    Strain,
+    /// The actuator limit `f0_max` does.
+    F0Max,
+    /// The crawler does not move forward (no friction asymmetry, or `V <= 0`).
+    NoForwardMotion,
+    /// The model has no answer here (outside its validity, or no periodic solution).
+    ModelUndefined,
+}
+
+impl Infeasibility {
+    /// Every cause, in the order of the figures' legends.
+    pub const ALL: [Infeasibility; 6] = [
+        Self::Mileage,
+        Self::Stress,
+        Self::Strain,
+        Self::F0Max,
+        Self::NoForwardMotion,
+        Self::ModelUndefined,
+    ];
+
+    /// A short description for legends and summaries.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::Mileage => "mileage budget D/J0 unreachable",
+            Self::Stress => "stress limit keeps f0 too small",
+            Self::Strain => "strain limit keeps f0 too small",
+            Self::F0Max => "actuator limit f0_max too small",
+            Self::NoForwardMotion => "no forward motion",
+            Self::ModelUndefined => "model undefined",
+        }
+    }
+
+    fn of(binding: Binding) -> Self {
+        match binding {
+            Binding::Stress => Self::Stress,
+            Binding::Strain => Self::Strain,
+            Binding::F0Max => Self::F0Max,
+            Binding::Mileage | Binding::Infeasible => Self::Mileage,
+        }
+    }
+}
+
+/// Why a cell is infeasible: the cause and a message with the numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Infeasible {
+    /// The cause.
+    pub cause: Infeasibility,
+    /// What was found, with numbers.
+    pub message: String,
+}
+
+impl Infeasible {
+    fn new(cause: Infeasibility, message: impl Into<String>) -> Self {
+        Self {
+            cause,
+            message: message.into(),
+        }
+    }
+}
+
+impl std::fmt::Display for Infeasible {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
 /// One grid cell.
 #[derive(Debug, Clone, Serialize)]
 pub struct Cell {
@@ -128,6 +260,9 @@ pub struct Cell {
     /// The binding constraint.
     pub binding: Binding,
     /// Why the cell is infeasible.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub infeasibility: Option<Infeasibility>,
+    /// The same, with numbers.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
 }
@@ -206,6 +341,8 @@ pub struct OptimizeReport {
     pub cells: Vec<Cell>,
     /// Model evaluations of the refinement.
     pub refinement_evaluations: usize,
+    /// How the optimum was chosen on the ridge of nearly equal speeds.
+    pub tie_break: TieBreak,
 }
 
 /// Why the optimisation failed.
@@ -289,21 +426,21 @@ impl Problem {
     }
 
     /// The largest feasible `f0` at `(omega, k)` under `model`, or why there is none.
-    pub fn choose(&self, model: &ModelChoice, omega: f64, k: f64) -> Result<Choice, String> {
+    pub fn choose(&self, model: &ModelChoice, omega: f64, k: f64) -> Result<Choice, Infeasible> {
         match model {
             ModelChoice::Paper => self.choose_paper(omega, k),
             ModelChoice::Improved(_) => self.choose_generic(model, omega, k),
         }
     }
 
-    fn choose_paper(&self, omega: f64, k: f64) -> Result<Choice, String> {
+    fn choose_paper(&self, omega: f64, k: f64) -> Result<Choice, Infeasible> {
         let peak = h_peak(self.friction.n_f);
         self.choose_paper_with(omega, k, peak, &self.mileage_root(k, peak))
     }
 
     /// The mileage condition of the paper's model at wave number `k`: `(K, z_a)`, with `z_a` the
     /// rising root of `h(z) = K`. `K = (D/J0) c_v P(f0 = 1) g^2 / (eps c_d)` depends on `k` only
-    /// (physics-notes §5), so a grid solves it once per row of k.
+    /// (`docs/physics.md` §5.2), so a grid solves it once per row of k.
     fn mileage_root(&self, k: f64, peak: (f64, f64)) -> (f64, Option<f64>) {
         let f = self.friction;
         let band = f.band();
@@ -328,7 +465,7 @@ impl Problem {
         k: f64,
         peak: (f64, f64),
         row: &(f64, Option<f64>),
-    ) -> Result<Choice, String> {
+    ) -> Result<Choice, Infeasible> {
         let op = self.point(omega, k, 1.0);
         let (alpha, zeta) = (op.alpha(), op.zeta());
         let r0 = r0(alpha, zeta);
@@ -336,7 +473,10 @@ impl Problem {
         let f = self.friction;
         let band = f.band();
         if band * f.n_f <= 0.0 {
-            return Err("no forward motion is possible: eps c_d n_F = 0".into());
+            return Err(Infeasible::new(
+                Infeasibility::NoForwardMotion,
+                "no forward motion is possible: eps c_d n_F = 0",
+            ));
         }
         // caps
         let f_stress = self.task.sigma_max * self.body.area
@@ -358,10 +498,13 @@ impl Problem {
         let (kk, z_root) = *row;
         let h_star = peak.1;
         if kk > h_star {
-            return Err(format!(
-                "mileage: the best amplitude gives M = {:.4e} m/J < D/J0 = {:.4e} m/J",
-                h_star * band / (f.viscous * p * g * g),
-                self.task.min_mileage()
+            return Err(Infeasible::new(
+                Infeasibility::Mileage,
+                format!(
+                    "mileage: the best amplitude gives M = {:.4e} m/J < D/J0 = {:.4e} m/J",
+                    h_star * band / (f.viscous * p * g * g),
+                    self.task.min_mileage()
+                ),
             ));
         }
         let z_a = z_root.expect("feasible rows have a root");
@@ -374,10 +517,13 @@ impl Problem {
         };
         // z must also lie below the falling root of h = K (mileage) and below 1 (validity).
         if h(f.n_f, z) < kk * (1.0 - 1e-9) || z > 1.0 {
-            return Err(format!(
-                "{}: the amplitude it allows ({:.4} N) is too small to meet the mileage D/J0 with forward motion",
-                binding_name(binding),
-                cap
+            return Err(Infeasible::new(
+                Infeasibility::of(binding),
+                format!(
+                    "{}: the amplitude it allows ({:.4} N) is too small to meet the mileage D/J0 with forward motion",
+                    binding_name(binding),
+                    cap
+                ),
             ));
         }
         let velocity = band / f.viscous * (f.n_f - 2.0 * z.asin() / PI);
@@ -388,7 +534,12 @@ impl Problem {
         })
     }
 
-    fn choose_generic(&self, model: &ModelChoice, omega: f64, k: f64) -> Result<Choice, String> {
+    fn choose_generic(
+        &self,
+        model: &ModelChoice,
+        omega: f64,
+        k: f64,
+    ) -> Result<Choice, Infeasible> {
         let pred = |f0: f64| model.predict(&self.point(omega, k, f0));
         let tol = 1e-7 * self.limits.f0_max;
         let mut cap = self.limits.f0_max;
@@ -403,7 +554,12 @@ impl Problem {
                 cap,
                 tol,
             )
-            .ok_or("stress: no amplitude meets sigma_max")?;
+            .ok_or_else(|| {
+                Infeasible::new(
+                    Infeasibility::Stress,
+                    "stress: no amplitude meets sigma_max",
+                )
+            })?;
             binding = Binding::Stress;
         }
         let at_cap = pred(cap);
@@ -414,7 +570,12 @@ impl Problem {
                 cap,
                 tol,
             )
-            .ok_or("strain: no amplitude meets strain_max")?;
+            .ok_or_else(|| {
+                Infeasible::new(
+                    Infeasibility::Strain,
+                    "strain: no amplitude meets strain_max",
+                )
+            })?;
             binding = Binding::Strain;
         }
         let req = self.task.min_mileage();
@@ -429,22 +590,31 @@ impl Problem {
         if mileage(cap) < req {
             let (f_peak, m_peak) = golden_max(mileage, 1e-3 * cap, cap, 1e-4 * cap);
             if m_peak < req {
-                return Err(format!(
-                    "mileage: the best amplitude at or below {:.4} N ({}) gives M = {:.4e} m/J < D/J0 = {:.4e} m/J",
-                    cap,
-                    binding_name(binding),
-                    m_peak,
-                    req
+                return Err(Infeasible::new(
+                    Infeasibility::Mileage,
+                    format!(
+                        "mileage: the best amplitude at or below {:.4} N ({}) gives M = {:.4e} m/J < D/J0 = {:.4e} m/J",
+                        cap,
+                        binding_name(binding),
+                        m_peak,
+                        req
+                    ),
                 ));
             }
-            f0 = brent(|f| mileage(f) - req, f_peak, cap, tol)
-                .ok_or("mileage: root not bracketed")?;
+            f0 = brent(|f| mileage(f) - req, f_peak, cap, tol).ok_or_else(|| {
+                Infeasible::new(Infeasibility::Mileage, "mileage: root not bracketed")
+            })?;
             binding = Binding::Mileage;
         }
         let p = pred(f0);
-        let velocity = p.velocity.ok_or("model has no speed here")?;
+        let velocity = p.velocity.ok_or_else(|| {
+            Infeasible::new(Infeasibility::ModelUndefined, "model has no speed here")
+        })?;
         if velocity <= 0.0 {
-            return Err("no forward motion at the allowed amplitude".into());
+            return Err(Infeasible::new(
+                Infeasibility::NoForwardMotion,
+                "no forward motion at the allowed amplitude",
+            ));
         }
         Ok(Choice {
             f0,
@@ -467,6 +637,15 @@ impl Problem {
                 "grid",
                 format!("{} x {}", grid.omega_points, grid.k_points),
                 "at least 2 x 2 points",
+            )
+            .into());
+        }
+        let tol = grid.tie_tolerance;
+        if !(0.0..=0.1).contains(&tol) {
+            return Err(crawler_plant::ParamError::new(
+                "grid.tie_tolerance",
+                tol,
+                "a relative speed tolerance in [0, 0.1]",
             )
             .into());
         }
@@ -505,47 +684,78 @@ impl Problem {
                     f0: Some(c.f0),
                     velocity: Some(c.velocity),
                     binding: c.binding,
+                    infeasibility: None,
                     reason: None,
                 },
-                Err(reason) => Cell {
+                Err(why) => Cell {
                     omega,
                     k,
                     alpha,
                     f0: None,
                     velocity: None,
                     binding: Binding::Infeasible,
-                    reason: Some(reason),
+                    infeasibility: Some(why.cause),
+                    reason: Some(why.message),
                 },
             }
         });
-        let best = cells
-            .iter()
-            .enumerate()
-            .filter_map(|(i, c)| c.velocity.map(|v| (i, v)))
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((best_index, _)) = best else {
+        let feasible = || {
+            cells
+                .iter()
+                .enumerate()
+                .filter_map(|(i, c)| Some((i, c.velocity?, c.f0?)))
+        };
+        let Some(grid_top) = feasible().map(|c| c.1).max_by(f64::total_cmp) else {
             return Err(OptimizeError::Infeasible(infeasibility_summary(&cells)));
         };
+        let (best_index, _, _) = feasible()
+            .reduce(|a, b| {
+                if better((b.1, b.2), (a.1, a.2), grid_top, tol) {
+                    b
+                } else {
+                    a
+                }
+            })
+            .expect("a feasible cell exists");
+        let tied: Vec<&Cell> = feasible()
+            .filter(|c| c.1 >= grid_top * (1.0 - tol))
+            .map(|c| &cells[c.0])
+            .collect();
+        let range = |f: &dyn Fn(&Cell) -> f64| {
+            tied.iter()
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |r, c| {
+                    [r[0].min(f(c)), r[1].max(f(c))]
+                })
+        };
+        let tied_speeds = range(&|c| c.velocity.unwrap_or(0.0));
+        let (tied_omega, tied_k) = (range(&|c| c.omega), range(&|c| c.k));
+        let tied_cells = tied.len();
+        let mut top = grid_top;
         let (mut omega, mut k) = (cells[best_index].omega, cells[best_index].k);
         let mut choice = self
             .choose(model, omega, k)
-            .map_err(OptimizeError::Infeasible)?;
+            .map_err(|e| OptimizeError::Infeasible(e.message))?;
         let mut evaluations = 0;
         if grid.refine {
-            let d_omega = (omegas[1] - omegas[0]).abs();
+            // A compass search in (alpha, k): a step in k keeps alpha, so the search can follow
+            // the resonance line, along which the optimum's ridge runs (docs/physics.md §5.3).
+            let c = self.body.wave_speed();
+            let d_alpha = (omegas[1] - omegas[0]).abs() / (k * c);
             let d_k = if ks.len() > 1 && self.body_length == BodyLength::OneWavelength {
                 (ks[1] - ks[0]).abs()
             } else {
                 0.0
             };
-            let (mut s_omega, mut s_k) = (0.5 * d_omega, 0.5 * d_k);
-            while s_omega > 1e-4 * d_omega && evaluations < 200 {
+            let mut alpha = omega / (k * c);
+            let (mut s_alpha, mut s_k) = (0.5 * d_alpha, 0.5 * d_k);
+            while s_alpha > 1e-4 * d_alpha && evaluations < 200 {
                 let mut improved = false;
-                for (dw, dk) in [(s_omega, 0.0), (-s_omega, 0.0), (0.0, s_k), (0.0, -s_k)] {
-                    if dw == 0.0 && dk == 0.0 {
+                for (da, dk) in [(s_alpha, 0.0), (-s_alpha, 0.0), (0.0, s_k), (0.0, -s_k)] {
+                    if da == 0.0 && dk == 0.0 {
                         continue;
                     }
-                    let (w2, k2) = (omega + dw, k + dk);
+                    let (a2, k2) = (alpha + da, k + dk);
+                    let w2 = a2 * k2 * c;
                     if w2 < self.limits.omega[0]
                         || w2 > self.limits.omega[1]
                         || k2 < self.limits.k[0]
@@ -555,16 +765,16 @@ impl Problem {
                     }
                     evaluations += 1;
                     if let Ok(c) = self.choose(model, w2, k2) {
-                        if c.velocity > choice.velocity * (1.0 + 1e-12) {
-                            omega = w2;
-                            k = k2;
+                        top = top.max(c.velocity);
+                        if better((c.velocity, c.f0), (choice.velocity, choice.f0), top, tol) {
+                            (alpha, omega, k) = (a2, w2, k2);
                             choice = c;
                             improved = true;
                         }
                     }
                 }
                 if !improved {
-                    s_omega *= 0.5;
+                    s_alpha *= 0.5;
                     s_k *= 0.5;
                 }
             }
@@ -598,6 +808,16 @@ impl Problem {
             k_grid: ks,
             cells,
             refinement_evaluations: evaluations,
+            tie_break: TieBreak {
+                criterion: "lowest f0 among the cells within the tolerance of the fastest speed",
+                tolerance: tol,
+                fastest_velocity: top,
+                tied_cells,
+                tied_speed_spread: (tied_speeds[1] - tied_speeds[0]) / tied_speeds[1],
+                tied_omega,
+                tied_k,
+                speed_given_up: 1.0 - choice.velocity / top,
+            },
         })
     }
 }
@@ -613,23 +833,23 @@ fn binding_name(b: Binding) -> &'static str {
 }
 
 fn infeasibility_summary(cells: &[Cell]) -> String {
-    let mut reasons: Vec<(&str, usize)> = Vec::new();
-    for c in cells {
-        let r = c.reason.as_deref().unwrap_or("unknown");
-        let key = r.split(':').next().unwrap_or(r);
-        match reasons.iter_mut().find(|(k, _)| *k == key) {
-            Some(e) => e.1 += 1,
-            None => reasons.push((key, 1)),
-        }
-    }
-    reasons.sort_by_key(|r| std::cmp::Reverse(r.1));
+    let counts: Vec<String> = Infeasibility::ALL
+        .iter()
+        .filter_map(|&cause| {
+            let n = cells
+                .iter()
+                .filter(|c| c.infeasibility == Some(cause))
+                .count();
+            (n > 0).then(|| format!("{} ({n} cells)", cause.describe()))
+        })
+        .collect();
     let example = cells
         .iter()
         .find_map(|c| c.reason.clone())
         .unwrap_or_default();
     format!(
-        "no (omega, k) in the bounds is feasible; constraint at fault per cell: {}. Example: {example}",
-        reasons.iter().map(|(k, n)| format!("{k} ({n} cells)")).collect::<Vec<_>>().join(", ")
+        "no (omega, k) in the bounds is feasible; cause per cell: {}. Example: {example}",
+        counts.join(", ")
     )
 }
 

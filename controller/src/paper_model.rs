@@ -1,5 +1,5 @@
 //! The paper's leading-order perturbation model (Sec. III-IV, eqs. 27-34, Appendix II),
-//! written in the physically consistent sign convention of physics-notes §1-2.
+//! written in the physically consistent sign convention of `docs/physics.md` §2.4 and §3.
 //!
 //! Nondimensional model: `mu_tt = mu_xx + cos(chi - alpha tau) - zeta mu_t - eps pi_r (s - n_F)`.
 //! Leading order `mu0 = -R0 cos(xi) + eps C1 tau`, `xi = chi - alpha tau - phi0` (a phase of pi
@@ -25,7 +25,7 @@ pub struct PaperTerms {
     pub pi_r: f64,
     /// `R0 = 1 / sqrt((alpha^2 - 1)^2 + (zeta alpha)^2)`.
     pub r0: f64,
-    /// `phi0 = atan2(zeta alpha, alpha^2 - 1)` in (0, pi) (note 2.2).
+    /// `phi0 = atan2(zeta alpha, alpha^2 - 1)` in (0, pi) (`docs/physics.md` §7, item 2).
     pub phi0: f64,
     /// `C0 = pi_r n_F / zeta`.
     pub c0: f64,
@@ -137,7 +137,7 @@ impl PaperModel {
     }
 
     /// Eq. (30) as printed: `f0 / (A_c E) R0 alpha sqrt(1 + (c_v / (rho omega_n))^2)`. Dimensionally a
-    /// strain (note 2.3); times E it agrees with [`Self::max_stress`] only at resonance.
+    /// strain (`docs/physics.md` §3.4); times E it agrees with [`Self::max_stress`] only at resonance.
     pub fn stress_eq30(op: &OperatingPoint) -> f64 {
         let t = PaperTerms::at(op);
         let ratio = op.friction.viscous / (op.body.density * op.omega_n());

@@ -1,7 +1,7 @@
 //! The improved reduced model: the exact steady state under a travelling wave on a periodic body.
 //!
 //! Under `A_m f = f0 sin(kx - omega t + phase)` the steady state is a travelling wave plus a drift,
-//! `u = W(xi) + V t` with `xi = kx - omega t + phase` (physics-notes §4). With `y = W'` the
+//! `u = W(xi) + V t` with `xi = kx - omega t + phase` (`docs/physics.md` §4). With `y = W'` the
 //! material velocity is `w = u_t = V - omega y` and the strain `u_x = k y`; substituting turns the
 //! PDE into the periodic, nonsmooth ODE
 //!

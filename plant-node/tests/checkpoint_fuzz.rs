@@ -1,5 +1,7 @@
 //! Property-based fuzzing of co-simulation checkpoints: mutated or truncated files are refused
-//! or read, never a panic.
+//! or read, never a panic. The checksum stops almost every mutation of the file as it is, so the
+//! payload is also mutated behind a recomputed, valid checksum: what then decodes must be a
+//! checkpoint a plant can continue from, and must round-trip unchanged.
 
 use proptest::prelude::*;
 
@@ -7,6 +9,9 @@ use crawler_plant::plant::Plant;
 use crawler_plant::scenario::Scenario;
 use crawler_plant::simulate::EpisodeLog;
 use crawler_plant_node::checkpoint::Checkpoint;
+
+/// The framing header: magic (8 bytes), version (4), CRC-32 of the payload (4).
+const HEADER: usize = 16;
 
 fn sample() -> Checkpoint {
     let s = Scenario::paper();
@@ -27,10 +32,65 @@ fn sample() -> Checkpoint {
     }
 }
 
+/// `payload` behind the header of `framed`, with its correct checksum.
+fn reframe(framed: &[u8], payload: &[u8]) -> Vec<u8> {
+    let mut out = framed[..HEADER - 4].to_vec();
+    out.extend_from_slice(&crc32fast::hash(payload).to_le_bytes());
+    out.extend_from_slice(payload);
+    out
+}
+
+/// Whatever a checkpoint file decodes to is usable: a plant restores from its state and takes a
+/// step without panicking, and it encodes and decodes to an equal checkpoint.
+fn check(bytes: &[u8]) -> bool {
+    let Ok(c) = Checkpoint::from_bytes(bytes) else {
+        return false;
+    };
+    let mut plant = Plant::from_state(&c.state).expect("from_bytes restored this state once");
+    let _ = plant.advance();
+    assert_eq!(Checkpoint::from_bytes(&c.to_bytes()).unwrap(), c);
+    true
+}
+
 #[test]
 fn a_checkpoint_round_trips() {
     let ckpt = sample();
     assert_eq!(Checkpoint::from_bytes(&ckpt.to_bytes()).unwrap(), ckpt);
+    // and the re-framing used below reproduces the file exactly
+    let bytes = ckpt.to_bytes();
+    assert_eq!(reframe(&bytes, &bytes[HEADER..]), bytes);
+    assert!(check(&bytes));
+}
+
+#[test]
+fn a_changed_number_behind_a_valid_checksum_is_read_as_that_number() {
+    // Past the checksum the decoder's own checks are all that stand: change the run's last step
+    // inside the payload and the checkpoint says so, with nothing else changed.
+    let ckpt = sample();
+    let bytes = ckpt.to_bytes();
+    let payload = &bytes[HEADER..];
+    let key = b"\xa9last_step";
+    let at = payload
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("the payload names its fields")
+        + key.len();
+    assert_eq!(payload[at], 100, "last_step = 100 is a positive fixint");
+    let mut changed = payload.to_vec();
+    changed[at] = 120;
+    let read = Checkpoint::from_bytes(&reframe(&bytes, &changed)).unwrap();
+    assert_eq!(read.last_step, 120);
+    assert_eq!(
+        Checkpoint {
+            last_step: 100,
+            ..read
+        },
+        ckpt
+    );
+    // a step past the last one is refused with the reason
+    changed[at] = 0;
+    let e = Checkpoint::from_bytes(&reframe(&bytes, &changed)).unwrap_err();
+    assert!(e.to_string().contains("past the last step"), "{e:#}");
 }
 
 proptest! {
@@ -41,7 +101,17 @@ proptest! {
         let mut c = sample().to_bytes();
         let i = at.index(c.len());
         c[i] ^= byte | 1;
-        let _ = Checkpoint::from_bytes(&c);
-        let _ = Checkpoint::from_bytes(&c[..cut.index(c.len())]);
+        check(&c);
+        check(&c[..cut.index(c.len())]);
+    }
+
+    #[test]
+    fn mutated_payloads_behind_a_valid_checksum_are_refused_or_usable(at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<prop::sample::Index>()) {
+        let framed = sample().to_bytes();
+        let mut payload = framed[HEADER..].to_vec();
+        let i = at.index(payload.len());
+        payload[i] ^= byte | 1;
+        check(&reframe(&framed, &payload));
+        check(&reframe(&framed, &payload[..cut.index(payload.len())]));
     }
 }

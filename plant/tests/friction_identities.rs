@@ -1,4 +1,4 @@
-//! Facts any correct plant must satisfy with dry friction (physics-notes §3, §4).
+//! Facts any correct plant must satisfy with dry friction (docs/physics.md §2.1-2.2, §3.2).
 
 mod common;
 

@@ -1,4 +1,4 @@
-//! eps = 0: the model is linear and solved exactly (physics-notes §3).
+//! eps = 0: the model is linear and solved exactly (docs/physics.md §2.3).
 
 mod common;
 

@@ -3,7 +3,9 @@
 use crawler_plant::wave::Wave;
 
 use crate::controller::{Actuation, Context, Controller, Observation};
-use crate::optimizer::{BodyLength, GridSpec, ModelChoice, OptimizeReport, Problem};
+use crate::optimizer::{
+    BodyLength, GridSpec, ModelChoice, OptimizeReport, Problem, DEFAULT_TIE_TOLERANCE,
+};
 use crate::travelling_wave::TravellingWaveModel;
 
 /// The wave that maximises the predicted speed under the scenario's task and limits, with `k`
@@ -43,6 +45,7 @@ pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
             omega_points: n,
             k_points: n,
             refine: true,
+            tie_tolerance: DEFAULT_TIE_TOLERANCE,
         },
     )?;
     let o = &report.optimum;

@@ -19,7 +19,7 @@ pub fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
 }
 
-/// The exact linear (eps = 0) steady state of physics-notes §3.
+/// The exact linear (eps = 0) steady state of docs/physics.md §2.3.
 pub struct Linear {
     pub r0: f64,
     pub phi0: f64,
