@@ -101,6 +101,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match dispatch(cli) {
         Ok(code) => code,
+        // the reader of the output went away (`simulate --json | head`): the end of the output
+        Err(e) if crawler_cli::stdout::is_broken_pipe(e.as_ref()) => Exit::Finished.into(),
         Err(e) => {
             eprintln!("crawler-plant: error: {e:#}");
             Exit::Failure.into()
@@ -188,9 +190,9 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
     match run(opts, tx, rx)? {
         Outcome::Finished(report) => {
             if a.json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
+                crawler_cli::stdout::line(serde_json::to_string_pretty(&report)?)?;
             } else {
-                println!("{}", report.summary());
+                crawler_cli::stdout::line(report.summary())?;
             }
             Ok(Exit::Finished.into())
         }
@@ -257,9 +259,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 )?;
                 bar.finish_and_clear();
                 if a.json {
-                    println!("{}", serde_json::to_string_pretty(&c)?);
+                    crawler_cli::stdout::line(serde_json::to_string_pretty(&c)?)?;
                 } else {
-                    println!("{}\n\n{}", c.coarse.summary(), c.summary());
+                    crawler_cli::stdout::line(format!("{}\n\n{}", c.coarse.summary(), c.summary()))?;
                 }
                 return Ok(());
             }
@@ -272,9 +274,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             )?;
             bar.finish_and_clear();
             if a.json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
+                crawler_cli::stdout::line(serde_json::to_string_pretty(&report)?)?;
             } else {
-                println!("{}", report.summary());
+                crawler_cli::stdout::line(report.summary())?;
             }
             Ok(())
         }
@@ -290,7 +292,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 scenario.plant.numerics.cells,
                 a.seconds,
             )?;
-            println!("{}", serde_json::to_string(&r)?);
+            crawler_cli::stdout::line(serde_json::to_string(&r)?)?;
             Ok(())
         }
         Command::Describe(a) => {
@@ -303,9 +305,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 scenario.t_end,
             );
             if a.xml {
-                print!("{}", md.to_xml());
+                crawler_cli::stdout::text(md.to_xml())?;
             } else {
-                println!("{}", md.to_json());
+                crawler_cli::stdout::line(md.to_json())?;
             }
             Ok(())
         }
