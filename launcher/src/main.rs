@@ -141,6 +141,11 @@ fn binaries() -> anyhow::Result<PathBuf> {
         let profile_release = dir.ends_with("release");
         let mut cmd = Command::new(cargo);
         cmd.arg("build").arg("--bins");
+        // the workspace `cargo run` ran us from, wherever the user is now
+        if let Ok(dir) = std::env::var("CARGO_MANIFEST_DIR") {
+            cmd.arg("--manifest-path")
+                .arg(Path::new(&dir).join("Cargo.toml"));
+        }
         if profile_release {
             cmd.arg("--release");
         }
@@ -214,7 +219,7 @@ fn spawn(
 ) -> anyhow::Result<Proc> {
     let mut cmd = Command::new(exe);
     // Each process in its own process group: Ctrl-C in a terminal reaches the launcher alone,
-    // which stops the run in order (controller, plant, recorder) and exits 130.
+    // which stops the run in order (plant, controller, recorder) and exits 130.
     #[cfg(unix)]
     {
         use std::os::unix::process::CommandExt;
@@ -445,8 +450,8 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     loop {
         if interrupted.load(Ordering::SeqCst) {
             return Ok(stop_interrupted(&mut [
-                &mut controller,
                 &mut plant,
+                &mut controller,
                 &mut bridge,
             ]));
         }

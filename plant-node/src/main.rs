@@ -261,7 +261,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 if a.json {
                     crawler_cli::stdout::line(serde_json::to_string_pretty(&c)?)?;
                 } else {
-                    crawler_cli::stdout::line(format!("{}\n\n{}", c.coarse.summary(), c.summary()))?;
+                    crawler_cli::stdout::line(format!(
+                        "{}\n\n{}",
+                        c.coarse.summary(),
+                        c.summary()
+                    ))?;
                 }
                 return Ok(());
             }
