@@ -24,7 +24,7 @@ use crawler_protocol::{
 };
 use crawler_transport::Network;
 
-use crate::controller::{Actuation, Context, Observation, PolicyOptions};
+use crate::controller::{Actuation, Context, FeedbackOptions, Insight, Observation, PolicyOptions};
 use crate::operating_point::OperatingPoint;
 use crate::paper_model::{first_order_harmonic, PaperModel, PaperTerms};
 use crate::prediction::{Model, Prediction, Validity};
@@ -37,6 +37,8 @@ pub struct ClientOptions {
     pub policy: String,
     /// Policy options.
     pub options: PolicyOptions,
+    /// Settings of the feedback policies.
+    pub feedback: FeedbackOptions,
     /// The scenario: task, limits and default wave (the plant's parameters come from the plant).
     pub scenario: Scenario,
     /// Where the run's processes meet.
@@ -158,9 +160,21 @@ fn fmt(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{v:.5e}"))
 }
 
-/// The plant's parameters as a controller context.
-pub fn context_of(info: &ModelInfo, scenario: &Scenario, options: PolicyOptions) -> Context {
+/// The plant's parameters as a controller context: what the plant tells (its body, grid, step and
+/// the friction it discloses) over the controller's own scenario file (task, limits, default
+/// wave). When the plant does not disclose its pipe, the pipe map of the controller's file is
+/// dropped too, so that no policy can read the environment from a file it happens to share.
+pub fn context_of(
+    info: &ModelInfo,
+    scenario: &Scenario,
+    options: PolicyOptions,
+    feedback: FeedbackOptions,
+) -> Context {
     let mut scenario = scenario.clone();
+    if !info.disclosed {
+        scenario.plant.pipe.features.clear();
+        scenario.plant.pipe.disclose = false;
+    }
     scenario.plant.body = Body {
         area: info.area,
         density: info.density,
@@ -189,6 +203,7 @@ pub fn context_of(info: &ModelInfo, scenario: &Scenario, options: PolicyOptions)
         step: info.step,
         scenario,
         options,
+        feedback,
     }
 }
 
@@ -251,6 +266,26 @@ pub fn predictions(ctx: &Context, wave: Wave) -> Vec<ModelPrediction> {
         model_prediction(&paper.predict(&op), paper_tail(&op, 15)),
         model_prediction(&TravellingWaveModel::default().predict(&op), None),
     ]
+}
+
+/// A feedback controller's report as a model prediction: its own model's numbers (if any) under
+/// its name, and its text (estimates, confidence, decision) where a model says how valid it is.
+fn insight_prediction(i: &Insight) -> ModelPrediction {
+    let mut m = match &i.prediction {
+        Some(p) => model_prediction(p, None),
+        None => ModelPrediction {
+            model: "controller".into(),
+            velocity: None,
+            power: None,
+            mileage: None,
+            max_stress: None,
+            stuck_fraction: None,
+            validity: String::new(),
+            tail: None,
+        },
+    };
+    m.validity = i.text.clone();
+    m
 }
 
 enum Event {
@@ -360,7 +395,12 @@ fn serve(
             None => std::thread::sleep(Duration::from_millis(200)),
         }
     };
-    let ctx = context_of(&info, &opts.scenario, opts.options.clone());
+    let ctx = context_of(
+        &info,
+        &opts.scenario,
+        opts.options.clone(),
+        opts.feedback.clone(),
+    );
     let mut policy = crate::policies::build(&opts.policy, &ctx)?;
     eprintln!(
         "crawler-controller: plant found ({} cells, L = {} m, H = {} s); policy {}",
@@ -486,18 +526,27 @@ fn serve(
                     Actuation::Wave(w) => (Some(w), None),
                     Actuation::Field(f) => (None, Some(f)),
                 };
+                let insight = policy.insight();
+                // published after the actuation, so that the plant does not wait for it
+                let mut prediction = None;
                 if let Some(w) = wave {
-                    if last_wave != Some(w) {
-                        last_predictions = predictions(&ctx, w);
+                    if last_wave != Some(w) || insight.is_some() {
+                        if last_wave != Some(w) {
+                            last_predictions = predictions(&ctx, w);
+                        }
+                        let mut models = last_predictions.clone();
+                        if let Some(i) = &insight {
+                            models.push(insight_prediction(i));
+                        }
                         let msg = PredictionMsg {
                             v: PROTOCOL_VERSION,
                             controller: id.to_string(),
                             policy: policy.name().to_string(),
                             step: state.step,
                             wave: WaveMsg { f0: w.f0, k: w.k, omega: w.omega, phase: w.phase },
-                            models: last_predictions.clone(),
+                            models,
                         };
-                        let _ = prediction_pub.put(encode(&msg)).wait();
+                        prediction = Some(msg);
                         last_wave = Some(w);
                     }
                 }
@@ -510,6 +559,9 @@ fn serve(
                 };
                 actuation_pub.put(encode(&msg)).wait().map_err(z)?;
                 answered += 1;
+                if let Some(p) = prediction {
+                    let _ = prediction_pub.put(encode(&p)).wait();
+                }
             },
             default(Duration::from_millis(500)) => {
                 if last_seen.elapsed() > deadline_idle {

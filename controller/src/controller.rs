@@ -8,6 +8,8 @@ use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
 
 use crate::optimizer::ModelChoice;
+use crate::policies::{AdaptiveOptions, ReflexOptions};
+use crate::prediction::Prediction;
 
 /// What the controller sees each communication step.
 #[derive(Debug, Clone, Copy)]
@@ -58,6 +60,17 @@ pub struct Context {
     pub scenario: Scenario,
     /// Policy options from the command line.
     pub options: PolicyOptions,
+    /// Settings of the feedback policies (`adaptive`, `reflex`).
+    pub feedback: FeedbackOptions,
+}
+
+/// Settings of the feedback policies.
+#[derive(Debug, Clone, Default)]
+pub struct FeedbackOptions {
+    /// `adaptive`: estimator and re-planning.
+    pub adaptive: AdaptiveOptions,
+    /// `reflex`: the oscillators and reflexes.
+    pub reflex: ReflexOptions,
 }
 
 /// Options common to the built-in policies.
@@ -102,6 +115,33 @@ impl Default for PolicyOptions {
     }
 }
 
+impl FeedbackOptions {
+    /// The defaults with `KEY=VALUE` settings applied (`--adaptive`, `--reflex`).
+    pub fn from_settings(adaptive: &[String], reflex: &[String]) -> anyhow::Result<Self> {
+        let mut me = Self::default();
+        for s in adaptive {
+            let (k, v) = split_setting("adaptive", s)?;
+            me.adaptive.set(k, v)?;
+        }
+        for s in reflex {
+            let (k, v) = split_setting("reflex", s)?;
+            me.reflex.set(k, v)?;
+        }
+        me.adaptive.validate()?;
+        me.reflex.validate()?;
+        Ok(me)
+    }
+}
+
+/// `KEY=VALUE` with VALUE a finite number.
+fn split_setting<'a>(flag: &str, s: &'a str) -> anyhow::Result<(&'a str, f64)> {
+    let bad = || anyhow::anyhow!("invalid --{flag} {s:?}: allowed KEY=VALUE with a number");
+    let (k, v) = s.split_once('=').ok_or_else(bad)?;
+    let x: f64 = v.trim().parse().map_err(|_| bad())?;
+    anyhow::ensure!(x.is_finite(), "invalid --{flag} {s:?}: the value must be finite");
+    Ok((k.trim(), x))
+}
+
 impl Context {
     /// The context of an in-process run of `scenario`.
     pub fn of_scenario(scenario: &Scenario, options: PolicyOptions) -> Self {
@@ -114,7 +154,33 @@ impl Context {
             step: scenario.plant.numerics.step,
             scenario: scenario.clone(),
             options,
+            feedback: FeedbackOptions::default(),
         }
+    }
+
+    /// What a controller of a co-simulated run of `scenario` is told (the plant's model
+    /// description: the nominal friction and no pipe map when the pipe is not disclosed, the
+    /// communication step actually used), as [`crate::client::context_of`] builds it; an
+    /// in-process run with this context is bit-identical to the co-simulated one.
+    pub fn as_told(
+        scenario: &Scenario,
+        options: PolicyOptions,
+        feedback: FeedbackOptions,
+    ) -> Result<Self, crawler_plant::ParamError> {
+        let mut s = scenario.clone();
+        s.plant = scenario.plant.told();
+        s.plant.numerics.step = scenario.plant.discretisation()?.step;
+        Ok(Self {
+            body: s.plant.body,
+            friction: s.plant.friction,
+            length: s.plant.length,
+            boundary: s.plant.boundary,
+            cells: s.plant.numerics.cells,
+            step: s.plant.numerics.step,
+            scenario: s,
+            options,
+            feedback,
+        })
     }
 
     /// The wave of the options, falling back to the scenario's (omega from alpha if given).
@@ -151,4 +217,21 @@ pub trait Controller: Send {
     fn describe(&self) -> String {
         self.name().to_string()
     }
+
+    /// What the controller has to report since the last call (called after every [`Self::act`]):
+    /// estimates with their confidence and the decisions taken, for the recorder. Open-loop
+    /// policies have nothing to say.
+    fn insight(&mut self) -> Option<Insight> {
+        None
+    }
+}
+
+/// A feedback controller's report: one line for the log, and the steady state it now expects.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Insight {
+    /// The estimates with their uncertainty and the decision taken, in words.
+    pub text: String,
+    /// The controller's own prediction of the steady state under what it applies (recorded as
+    /// the model named in `prediction.model` beside the plant's metrics).
+    pub prediction: Option<Prediction>,
 }

@@ -14,7 +14,9 @@
 
 pub mod bench;
 pub mod client;
+pub mod closed_loop;
 pub mod controller;
+pub mod estimator;
 pub mod figures;
 pub mod operating_point;
 pub mod optimizer;
@@ -25,6 +27,6 @@ pub mod roots;
 pub mod travelling_wave;
 pub mod verify;
 
-pub use controller::{Actuation, Context, Controller, Observation};
+pub use controller::{Actuation, Context, Controller, Insight, Observation};
 pub use operating_point::OperatingPoint;
 pub use prediction::{Model, Prediction, Validity};

@@ -103,6 +103,12 @@ struct RunArgs {
     /// optimal: relative margin kept on every constraint when certifying.
     #[arg(long, default_value_t = 0.005, allow_hyphen_values = true)]
     margin: f64,
+    /// adaptive: a setting KEY=VALUE (repeatable; `crawler-controller policies` lists the keys).
+    #[arg(long = "adaptive", value_name = "KEY=VALUE")]
+    adaptive: Vec<String>,
+    /// reflex: a setting KEY=VALUE (repeatable; `crawler-controller policies` lists the keys).
+    #[arg(long = "reflex", value_name = "KEY=VALUE")]
+    reflex: Vec<String>,
     /// Seconds to wait for the plant.
     #[arg(long, default_value_t = 60.0)]
     wait_timeout: f64,
@@ -271,9 +277,14 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
     ctrlc::set_handler(move || {
         let _ = tx.send(Interrupt);
     })?;
+    let feedback = crawler_controller::controller::FeedbackOptions::from_settings(
+        &a.adaptive,
+        &a.reflex,
+    )?;
     let opts = ClientOptions {
         policy: a.policy.clone(),
         options,
+        feedback,
         scenario,
         network,
         wait_timeout: std::time::Duration::from_secs_f64(a.wait_timeout),
@@ -324,6 +335,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             for (name, help, _) in REGISTRY {
                 out!("{name:<10} {help}");
             }
+            println!();
+            println!(
+                "--adaptive KEY=VALUE: {}",
+                crawler_controller::policies::AdaptiveOptions::KEYS.join(", ")
+            );
+            println!(
+                "--reflex KEY=VALUE:   {}",
+                crawler_controller::policies::ReflexOptions::KEYS.join(", ")
+            );
             Ok(())
         }
     }

@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use clap::{Args, Parser, Subcommand};
 use crawler_cli::Exit;
 
+mod compare;
 mod preflight;
 
 #[derive(Parser)]
@@ -32,6 +33,8 @@ struct Cli {
 enum Cmd {
     /// Run plant, controller and bridge on loopback and leave a Rerun recording.
     Run(RunArgs),
+    /// Every policy through the co-simulation in every case of the task; a table and recordings.
+    Compare(compare::CompareArgs),
     /// Run a sweep plan on all cores or on Slurm (`crawler sweep --help`; runs `crawler-sweep`).
     #[command(disable_help_flag = true)]
     Sweep {
@@ -80,6 +83,7 @@ struct RunArgs {
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Cmd::Run(a) => run(a),
+        Cmd::Compare(a) => compare::compare(a),
         Cmd::Sweep { args } => sweep(&args),
     };
     match result {

@@ -1,12 +1,16 @@
 //! Built-in policies and the registry that names them.
 
+mod adaptive;
 mod optimal;
 mod pulse;
+mod reflex;
 mod resonance;
 mod sweep;
 mod wave;
 
+pub use adaptive::{Adaptive, AdaptiveOptions};
 pub use optimal::Optimal;
+pub use reflex::{Reflex, ReflexOptions};
 pub use resonance::Resonance;
 pub use sweep::Sweep;
 pub use wave::FixedWave;
@@ -37,6 +41,16 @@ pub const REGISTRY: &[(&str, &str, Factory)] = &[
         "sweep",
         "a schedule of waves: --sweep ALPHA,ALPHA,... held --dwell seconds each",
         sweep::build,
+    ),
+    (
+        "adaptive",
+        "the optimum re-solved in flight with the friction estimated from the plant's state",
+        adaptive::build,
+    ),
+    (
+        "reflex",
+        "distributed: coupled phase oscillators per segment with local stick, energy and stress reflexes",
+        reflex::build,
     ),
     (
         "pulse",

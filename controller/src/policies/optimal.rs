@@ -20,6 +20,12 @@ pub struct Optimal {
 }
 
 pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
+    Ok(Box::new(plan(ctx)?))
+}
+
+/// The optimum for the plant of `ctx` (certified on the in-process plant unless the options say
+/// not to).
+pub(crate) fn plan(ctx: &Context) -> anyhow::Result<Optimal> {
     let problem = Problem {
         body: ctx.body,
         friction: ctx.friction,
@@ -71,11 +77,18 @@ pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
     } else {
         None
     };
-    Ok(Box::new(Optimal {
+    Ok(Optimal {
         report,
         wave,
         certification,
-    }))
+    })
+}
+
+impl Optimal {
+    /// The wave it applies.
+    pub fn wave(&self) -> Wave {
+        self.wave
+    }
 }
 
 impl Controller for Optimal {
