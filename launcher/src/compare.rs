@@ -74,6 +74,9 @@ pub struct CompareArgs {
     /// End time of every run, s (the task usually ends it earlier).
     #[arg(long, default_value_t = 60.0)]
     t_end: f64,
+    /// Cells of every plant (default: each scenario's own; fewer for a quick look).
+    #[arg(long)]
+    cells: Option<i64>,
     /// Record the fields of every K-th step.
     #[arg(long, default_value_t = 16)]
     every: u64,
@@ -98,6 +101,7 @@ struct Row {
     peak_stress: Option<f64>,
     time_over: Option<f64>,
     wall: f64,
+    state_digest: String,
     recording: String,
     error: Option<String>,
 }
@@ -115,6 +119,7 @@ impl Row {
             "peak_stress": self.peak_stress,
             "time_above_sigma_max": self.time_over,
             "wall_seconds": self.wall,
+            "state_digest": self.state_digest,
             "recording": self.recording,
             "error": self.error,
         })
@@ -269,6 +274,10 @@ fn run_one(
         "300".into(),
     ];
     ctl_args.extend(a.controller_args.iter().cloned());
+    let mut plant_args = plant_args;
+    if let Some(n) = a.cells {
+        plant_args.extend(["--cells".to_string(), n.to_string()]);
+    }
     let mut plant = super::spawn("plant", &dir.join("crawler-plant"), &plant_args, None)?;
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let mut bridge = super::spawn(
@@ -370,6 +379,11 @@ fn parse_report(json: &str) -> anyhow::Result<Row> {
         },
         peak_stress: num("max_stress"),
         time_over: num("time_over_sigma_max"),
+        state_digest: v
+            .get("state_digest")
+            .and_then(|x| x.as_str())
+            .unwrap_or_default()
+            .to_string(),
         ..Row::default()
     })
 }

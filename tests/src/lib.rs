@@ -158,8 +158,14 @@ impl Run {
 
     /// The Python example controller with `args`.
     pub fn python_controller(&self, args: &[&str]) -> Proc {
+        self.python_example("python_controller.py", args)
+    }
+
+    /// The Python example `examples/<script>` with `args` (network flags added).
+    pub fn python_example(&self, script: &str, args: &[&str]) -> Proc {
         let mut a: Vec<String> = vec![repo_root()
-            .join("examples/python_controller.py")
+            .join("examples")
+            .join(script)
             .display()
             .to_string()];
         a.extend(self.net());

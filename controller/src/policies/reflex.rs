@@ -2,7 +2,7 @@
 //! muscle from what it senses itself and what its two neighbours sense (a central pattern
 //! generator of coupled phase oscillators with proprioceptive reflexes, as in models of the
 //! earthworm and the lamprey). The law, its parameters and how they were tuned are in
-//! `docs/controllers.md`.
+//! `docs/feedback.md`.
 //!
 //! Segment `j` (a run of consecutive cells, centre `x_j`) holds a phase `phi_j`, a frequency
 //! `omega_j` and a log-amplitude `a_j = ln A_j`. Each communication step it senses its own mean
@@ -37,9 +37,9 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 use crawler_plant::params::Boundary;
 
-use crate::controller::{Actuation, Context, Controller, Insight, Observation};
+use crate::controller::{Actuation, Context, Controller, Observation};
 
-/// The reflex policy's parameters (defaults: tuned on the cases of `docs/controllers.md`).
+/// The reflex policy's parameters (defaults: tuned on the cases of `docs/feedback.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReflexOptions {
     /// Segment length, m (the body gets the nearest whole number of segments, at least one cell
@@ -215,8 +215,6 @@ pub struct Reflex {
     tension_limit: f64,
     field: Vec<f64>,
     started: bool,
-    next_report: u64,
-    report_every: u64,
 }
 
 pub(crate) fn build(ctx: &Context) -> anyhow::Result<Box<dyn Controller>> {
@@ -289,8 +287,6 @@ impl Reflex {
             tension_limit: o.stress_share * task.sigma_max * ctx.body.area,
             field: vec![0.0; n],
             started: false,
-            next_report: 0,
-            report_every: (0.5 / ctx.step).round().max(1.0) as u64,
         })
     }
 
@@ -361,11 +357,17 @@ impl Reflex {
                 None
             }
         };
-        let a_f = (h / o.filter).min(1.0);
         let ae = self.stiffness;
         for j in 0..count {
             let behind = neighbour(j, -1);
             let ahead = neighbour(j, 1);
+            // stress reflex: own largest tension at the step's end
+            let tension = {
+                let s = &self.segments[j];
+                (s.faces.0..s.faces.1)
+                    .map(|i| ae * self.strain(obs.u, i) + s.force)
+                    .fold(f64::NEG_INFINITY, f64::max)
+            };
             let s = &mut self.segments[j];
             // phase: own frequency and the pull of the neighbours towards a lag of Δ
             let mut dphi = s.omega;
@@ -396,15 +398,10 @@ impl Reflex {
             let budget =
                 (share * travelled / self.distance * (1.0 - o.margin) - s.work) / share;
             let mut da = o.mileage_gain * mileage_error + o.budget_gain * budget;
-            // stress reflex: own largest tension over the step's end
-            let tension = (s.faces.0..s.faces.1)
-                .map(|i| ae * self.strain(obs.u, i) + s.force)
-                .fold(f64::NEG_INFINITY, f64::max);
             if tension > self.tension_limit {
                 da -= o.stress_gain * (tension / self.tension_limit - 1.0);
             }
             s.log_amp = (s.log_amp + h * da).clamp((1e-4f64).ln(), (5.0f64).ln());
-            let _ = (stuck[j], a_f);
         }
         // forces for the next step at the middle of the step (the field is held over it)
         for j in 0..count {
@@ -490,10 +487,6 @@ impl Controller for Reflex {
             o.stress_share
         )
     }
-
-    fn insight(&mut self) -> Option<Insight> {
-        None
-    }
 }
 
 impl Reflex {
@@ -506,13 +499,4 @@ impl Reflex {
         )
     }
 
-    #[allow(dead_code)]
-    fn report_due(&mut self, step: u64) -> bool {
-        if step >= self.next_report {
-            self.next_report = step + self.report_every;
-            true
-        } else {
-            false
-        }
-    }
 }

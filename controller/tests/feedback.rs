@@ -1,0 +1,171 @@
+//! The feedback policies: the adaptive policy's estimator finds the friction the plant really has,
+//! the reflex policy is distributed (a segment's force depends on its own and its neighbours'
+//! sensing only) and deterministic.
+
+use crawler_controller::closed_loop;
+use crawler_controller::controller::{Context, FeedbackOptions, PolicyOptions};
+use crawler_controller::policies::{self, Adaptive, Reflex};
+use crawler_controller::{Actuation, Controller, Observation};
+use crawler_plant::scenario::{Overrides, Scenario};
+
+fn scenario(file: &str, cells: i64, t_end: f64) -> Scenario {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenarios")
+        .join(file);
+    Scenario::from_file(
+        &path,
+        &Overrides {
+            cells: Some(cells),
+            t_end: Some(t_end),
+            end_run: Some(true),
+            ..Overrides::default()
+        },
+    )
+    .unwrap()
+}
+
+/// The mismatch case: the pipe has eps = 0.3 and n_F = 0.7, the controller is told 0.1 and 0.5.
+/// Within a few seconds the adaptive policy's estimate is within three of its standard deviations
+/// of the truth, and those are small (the tolerance stated in docs/feedback.md).
+#[test]
+fn the_adaptive_estimate_converges_to_the_undisclosed_friction() {
+    let sc = scenario("mismatch.toml", 128, 8.0);
+    let ctx = Context::as_told(&sc, PolicyOptions::default(), FeedbackOptions::default()).unwrap();
+    assert_eq!(
+        (ctx.friction.eps, ctx.friction.n_f),
+        (0.1, 0.5),
+        "told the paper's values"
+    );
+    let mut policy = Adaptive::new(&ctx).unwrap();
+    let prior = policy.estimate();
+    assert_eq!((prior.eps, prior.n_f), (0.1, 0.5));
+    let run = closed_loop::run(&sc, &mut policy).unwrap();
+    let e = policy.estimate();
+    let text = e.describe();
+    assert!(e.windows >= 50, "{text}");
+    assert!(e.eps_std < 0.02 && e.n_f_std < 0.05, "uncertain: {text}");
+    assert!((e.eps - 0.3).abs() <= 3.0 * e.eps_std.max(1e-3), "eps: {text}");
+    assert!((e.n_f - 0.7).abs() <= 3.0 * e.n_f_std.max(1e-3), "n_F: {text}");
+    // it reported its estimates and re-planned with them
+    assert!(
+        run.insights.iter().any(|(_, i)| i.text.contains("re-plan")),
+        "no re-plan reported"
+    );
+}
+
+fn observation<'a>(
+    step: u64,
+    u: &'a [f64],
+    v: &'a [f64],
+    tension: &'a [f64],
+    stuck: &'a [bool],
+) -> Observation<'a> {
+    Observation {
+        step,
+        time: step as f64 * 1e-3,
+        u,
+        v,
+        tension,
+        stuck,
+        mean_speed: 0.0,
+        input_power: 0.0,
+    }
+}
+
+fn field(a: Actuation) -> Vec<f64> {
+    match a {
+        Actuation::Field(f) => f,
+        Actuation::Wave(_) => panic!("reflex answers with a field"),
+    }
+}
+
+/// A segment's force is a function of its own and its neighbours' sensing: changing the state of
+/// nodes two or more segments away leaves it bit for bit unchanged, while changing its own
+/// nodes changes it.
+#[test]
+fn a_reflex_segment_uses_only_local_sensing() {
+    let sc = scenario("paper.toml", 128, 1.0);
+    let mut fb = FeedbackOptions::default();
+    fb.reflex.segment_length = 1.0 / 16.0; // 16 segments of 8 cells
+    let ctx = Context::as_told(&sc, PolicyOptions::default(), fb).unwrap();
+    let n = ctx.cells;
+    let mut base = Reflex::new(&ctx).unwrap();
+    // a state with strain, motion and anchors everywhere
+    let u0: Vec<f64> = (0..n).map(|i| 1e-3 * (0.3 * i as f64).sin()).collect();
+    let v0: Vec<f64> = (0..n).map(|i| 1e-2 * (0.7 * i as f64).cos()).collect();
+    let t0: Vec<f64> = (0..n).map(|i| 0.1 * (0.2 * i as f64).cos()).collect();
+    let s0: Vec<bool> = (0..n).map(|i| i % 5 == 0).collect();
+    base.act(&observation(0, &u0, &v0, &t0, &s0));
+    let u1: Vec<f64> = u0.iter().map(|x| x + 1e-4).collect();
+    let reference = {
+        let mut r = base.clone();
+        field(r.act(&observation(1, &u1, &v0, &t0, &s0)))
+    };
+    // segment 4 holds faces 32..40 and senses nodes 24..48 (its neighbours' too; face 47's
+    // strain reads node 48): change everything from node 56 on (segment 7 and beyond, the
+    // periodic neighbour of segment 0 included, so stay below node 120)
+    let far = 56..120;
+    let mut u2 = u1.clone();
+    let mut v2 = v0.clone();
+    let mut t2 = t0.clone();
+    let mut s2 = s0.clone();
+    for i in far.clone() {
+        u2[i] += 3e-3 * (i as f64).cos();
+        v2[i] = -v2[i];
+        t2[i] += 1.0;
+        s2[i] = !s2[i];
+    }
+    let changed = field(base.clone().act(&observation(1, &u2, &v2, &t2, &s2)));
+    for i in 32..40 {
+        assert_eq!(
+            changed[i].to_bits(),
+            reference[i].to_bits(),
+            "face {i}: {} against {}",
+            changed[i],
+            reference[i]
+        );
+    }
+    assert!(
+        far.clone().any(|i| changed[i] != reference[i]),
+        "the far segments do not react to their own state"
+    );
+    // its own nodes (and a neighbour's anchor) do change it
+    let mut u3 = u1.clone();
+    let mut s3 = s0.clone();
+    for i in 32..40 {
+        u3[i] += 3e-3 * (i as f64).cos();
+    }
+    s3[41] = !s3[41];
+    let own = field(base.clone().act(&observation(1, &u3, &v0, &t0, &s3)));
+    assert!((32..40).any(|i| own[i] != reference[i]));
+}
+
+/// Two in-process runs of the reflex policy are bit-identical (no clock, no thread, no
+/// randomness in the law).
+#[test]
+fn the_reflex_policy_is_deterministic() {
+    let sc = scenario("patchy-pipe.toml", 128, 1.0);
+    let ctx = Context::as_told(&sc, PolicyOptions::default(), FeedbackOptions::default()).unwrap();
+    let run = || {
+        let mut p = policies::build("reflex", &ctx).unwrap();
+        closed_loop::run(&sc, p.as_mut()).unwrap().report
+    };
+    let (a, b) = (run(), run());
+    assert_eq!(a.state_digest, b.state_digest);
+    assert!(a.velocity != 0.0);
+}
+
+/// Bad settings name the key and the value.
+#[test]
+fn bad_feedback_settings_are_refused_with_their_name() {
+    let err = |a: &[&str], r: &[&str]| {
+        let a: Vec<String> = a.iter().map(|s| s.to_string()).collect();
+        let r: Vec<String> = r.iter().map(|s| s.to_string()).collect();
+        format!("{:#}", FeedbackOptions::from_settings(&a, &r).unwrap_err())
+    };
+    assert!(err(&["window=0"], &[]).contains("window = 0"));
+    assert!(err(&["nosuch=1"], &[]).contains("nosuch"));
+    assert!(err(&[], &["coupling=-1"]).contains("coupling = -1"));
+    assert!(err(&[], &["f0=nan"]).contains("f0"));
+    assert!(err(&[], &["k"]).contains("KEY=VALUE"));
+}
