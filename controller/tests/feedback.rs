@@ -25,7 +25,7 @@ fn scenario(file: &str, cells: i64, t_end: f64) -> Scenario {
 }
 
 /// The mismatch case: the pipe has eps = 0.3 and n_F = 0.7, the controller is told 0.1 and 0.5.
-/// Within a few seconds the adaptive policy's estimate is within three of its standard deviations
+/// Within six seconds the adaptive policy's estimate is within three of its standard deviations
 /// of the truth, and those are small (the tolerance stated in docs/feedback.md).
 #[test]
 fn the_adaptive_estimate_converges_to_the_undisclosed_friction() {
@@ -43,9 +43,13 @@ fn the_adaptive_estimate_converges_to_the_undisclosed_friction() {
     let e = policy.estimate();
     let text = e.describe();
     assert!(e.windows >= 50, "{text}");
-    assert!(e.eps_std < 0.02 && e.n_f_std < 0.05, "uncertain: {text}");
-    assert!((e.eps - 0.3).abs() <= 3.0 * e.eps_std.max(1e-3), "eps: {text}");
-    assert!((e.n_f - 0.7).abs() <= 3.0 * e.n_f_std.max(1e-3), "n_F: {text}");
+    // the stated tolerance: one standard deviation at most 0.025 on eps and 0.1 on n_F (the
+    // prior's are 1 and 0.5), and the truth within three of them
+    assert!(e.eps_std < 0.025 && e.n_f_std < 0.1, "uncertain: {text}");
+    assert!((e.eps - 0.3).abs() <= 3.0 * e.eps_std, "eps: {text}");
+    assert!((e.n_f - 0.7).abs() <= 3.0 * e.n_f_std, "n_F: {text}");
+    // and the told values are far outside them
+    assert!((e.eps - 0.1).abs() > 5.0 * e.eps_std, "{text}");
     // it reported its estimates and re-planned with them
     assert!(
         run.insights.iter().any(|(_, i)| i.text.contains("re-plan")),
@@ -84,7 +88,7 @@ fn field(a: Actuation) -> Vec<f64> {
 /// nodes changes it.
 #[test]
 fn a_reflex_segment_uses_only_local_sensing() {
-    let sc = scenario("paper.toml", 128, 1.0);
+    let sc = scenario("paper.toml", 128, 6.0);
     let mut fb = FeedbackOptions::default();
     fb.reflex.segment_length = 1.0 / 16.0; // 16 segments of 8 cells
     let ctx = Context::as_told(&sc, PolicyOptions::default(), fb).unwrap();
@@ -144,7 +148,7 @@ fn a_reflex_segment_uses_only_local_sensing() {
 /// randomness in the law).
 #[test]
 fn the_reflex_policy_is_deterministic() {
-    let sc = scenario("patchy-pipe.toml", 128, 1.0);
+    let sc = scenario("patchy-pipe.toml", 128, 6.0);
     let ctx = Context::as_told(&sc, PolicyOptions::default(), FeedbackOptions::default()).unwrap();
     let run = || {
         let mut p = policies::build("reflex", &ctx).unwrap();

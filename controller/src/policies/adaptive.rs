@@ -78,7 +78,7 @@ impl Default for AdaptiveOptions {
 
 impl AdaptiveOptions {
     /// The keys of [`Self::set`].
-    pub const KEYS: [&'static str; 14] = [
+    pub const KEYS: [&'static str; 15] = [
         "replan",
         "latency",
         "settle",
@@ -89,6 +89,7 @@ impl AdaptiveOptions {
         "window",
         "memory",
         "row_tolerance",
+        "momentum_tolerance",
         "prior_eps_std",
         "prior_n_f_std",
         "prior_viscous_rel_std",
@@ -118,6 +119,7 @@ impl AdaptiveOptions {
             "report" => self.report = value,
             "memory" => e.memory = value,
             "row_tolerance" => e.row_tolerance = value,
+            "momentum_tolerance" => e.momentum_tolerance = value,
             "prior_eps_std" => e.prior_eps_std = value,
             "prior_n_f_std" => e.prior_n_f_std = value,
             "prior_viscous_rel_std" => e.prior_viscous_rel_std = value,
