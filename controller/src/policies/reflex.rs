@@ -39,7 +39,8 @@ use crawler_plant::params::Boundary;
 
 use crate::controller::{Actuation, Context, Controller, Observation};
 
-/// The reflex policy's parameters (defaults: tuned on the cases of `docs/feedback.md`).
+/// The reflex policy's parameters (defaults: tuned on `scenarios/reflex-tuning.toml`, not on the
+/// compared cases; see `docs/feedback.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReflexOptions {
     /// Segment length, m (the body gets the nearest whole number of segments, at least one cell
@@ -79,12 +80,12 @@ impl Default for ReflexOptions {
             alpha: 1.0,
             f0: 0.05,
             coupling: 20.0,
-            stick_gain: 0.0,
+            stick_gain: 1.0,
             resonance_gain: 0.0,
             mileage_gain: 2.0,
             budget_gain: 20.0,
             filter: 0.3,
-            margin: 0.03,
+            margin: 0.1,
             stress_share: 0.8,
             stress_gain: 50.0,
         }
