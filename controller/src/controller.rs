@@ -138,7 +138,10 @@ fn split_setting<'a>(flag: &str, s: &'a str) -> anyhow::Result<(&'a str, f64)> {
     let bad = || anyhow::anyhow!("invalid --{flag} {s:?}: allowed KEY=VALUE with a number");
     let (k, v) = s.split_once('=').ok_or_else(bad)?;
     let x: f64 = v.trim().parse().map_err(|_| bad())?;
-    anyhow::ensure!(x.is_finite(), "invalid --{flag} {s:?}: the value must be finite");
+    anyhow::ensure!(
+        x.is_finite(),
+        "invalid --{flag} {s:?}: the value must be finite"
+    );
     Ok((k.trim(), x))
 }
 

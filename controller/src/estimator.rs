@@ -246,7 +246,11 @@ impl FrictionEstimator {
             + (told.eps.max(opts.prior_eps_std) * opts.prior_n_f_std).powi(2))
         .sqrt()
             * cd;
-        let prior_precision = [1.0 / (sd_v * sd_v), 1.0 / (sd_1 * sd_1), 1.0 / (sd_2 * sd_2)];
+        let prior_precision = [
+            1.0 / (sd_v * sd_v),
+            1.0 / (sd_1 * sd_1),
+            1.0 / (sd_2 * sd_2),
+        ];
         let mut me = Self {
             opts,
             body,
@@ -512,7 +516,10 @@ mod tests {
         for i in 0..3 {
             for j in 0..3 {
                 let p: f64 = (0..3).map(|k| a[i][k] * inv[k][j]).sum();
-                assert!((p - if i == j { 1.0 } else { 0.0 }).abs() < 1e-14, "{i}{j}: {p}");
+                assert!(
+                    (p - if i == j { 1.0 } else { 0.0 }).abs() < 1e-14,
+                    "{i}{j}: {p}"
+                );
             }
         }
         assert!(invert_spd(&[[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).is_none());

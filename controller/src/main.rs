@@ -277,10 +277,8 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
     ctrlc::set_handler(move || {
         let _ = tx.send(Interrupt);
     })?;
-    let feedback = crawler_controller::controller::FeedbackOptions::from_settings(
-        &a.adaptive,
-        &a.reflex,
-    )?;
+    let feedback =
+        crawler_controller::controller::FeedbackOptions::from_settings(&a.adaptive, &a.reflex)?;
     let opts = ClientOptions {
         policy: a.policy.clone(),
         options,

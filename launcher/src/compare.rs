@@ -169,7 +169,10 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(a.out_dir.join("scenarios"))?;
     let mut rows = Vec::new();
     for case in CASES.iter().filter(|c| cases.iter().any(|n| n == c.name)) {
-        let scenario = a.out_dir.join("scenarios").join(format!("{}.toml", case.name));
+        let scenario = a
+            .out_dir
+            .join("scenarios")
+            .join(format!("{}.toml", case.name));
         std::fs::write(&scenario, case.scenario)?;
         std::fs::create_dir_all(a.out_dir.join(case.name))?;
         eprintln!("crawler: case {}: {}", case.name, case.about);
@@ -334,7 +337,8 @@ fn run_one(
     let (_, plant_out) = plant.finish(Duration::ZERO);
     let (ctl_code, _) = controller.finish(Duration::from_secs(30));
     let (bridge_code, _) = bridge.finish(Duration::from_secs(60));
-    let mut row = parse_report(&plant_out).map_err(|e| anyhow::anyhow!("the plant's report: {e}"))?;
+    let mut row =
+        parse_report(&plant_out).map_err(|e| anyhow::anyhow!("the plant's report: {e}"))?;
     row.case = case.name.into();
     row.policy = policy.into();
     row.wall = started.elapsed().as_secs_f64();
@@ -449,7 +453,10 @@ mod tests {
         assert_eq!(r.time_over, Some(0.0));
         let failed = json
             .replace("\"reached\"", "\"energy exhausted\"")
-            .replace("\"energy_at_distance\": 19.5", "\"energy_at_distance\": null")
+            .replace(
+                "\"energy_at_distance\": 19.5",
+                "\"energy_at_distance\": null",
+            )
             .replace("\"time_to_distance\": 20.5", "\"time_to_distance\": null");
         let r = parse_report(&failed).unwrap();
         assert_eq!(r.outcome, "energy exhausted");

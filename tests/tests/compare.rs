@@ -45,11 +45,16 @@ fn compare_runs_every_policy_through_the_cosimulation() {
         assert!(r["energy_used"].as_f64().unwrap().is_finite());
         let rrd = std::path::PathBuf::from(r["recording"].as_str().unwrap());
         assert!(
-            std::fs::metadata(&rrd).map(|m| m.len() > 0).unwrap_or(false),
+            std::fs::metadata(&rrd)
+                .map(|m| m.len() > 0)
+                .unwrap_or(false),
             "{}",
             rrd.display()
         );
-        assert!(table.contains(&format!("| {case} | {policy} | time up |")), "{table}");
+        assert!(
+            table.contains(&format!("| {case} | {policy} | time up |")),
+            "{table}"
+        );
     }
     // the co-simulated reflex run is the in-process closed loop, bit for bit
     let sc = Scenario::from_file(

@@ -301,7 +301,9 @@ impl Plan {
                         wave = Some(w);
                         prediction = Some(p);
                     }
-                    Err(e) => text += &format!("; the optimum does not fit the body ({e}): keep the gait"),
+                    Err(e) => {
+                        text += &format!("; the optimum does not fit the body ({e}): keep the gait")
+                    }
                 }
             }
             Err(e) => text += &format!("; no feasible gait ({e}): keep the gait"),
@@ -448,11 +450,8 @@ impl Adaptive {
                 self.energy += obs.input_power * self.step;
                 if obs.time - self.gait_since >= self.opts.settle {
                     let h = self.step;
-                    let stress = obs
-                        .tension
-                        .iter()
-                        .fold(f64::NEG_INFINITY, |m, &t| m.max(t))
-                        / self.area;
+                    let stress =
+                        obs.tension.iter().fold(f64::NEG_INFINITY, |m, &t| m.max(t)) / self.area;
                     let s = &mut self.gait_sums;
                     s[0] += obs.mean_speed * h;
                     s[1] += obs.input_power * h;
@@ -489,7 +488,8 @@ impl Adaptive {
         }
         let e = self.estimator.estimate();
         let due = obs.time - self.last_plan_time >= self.opts.replan && self.measured().is_some();
-        let moved = e.windows > 0 && self.moved(&e) && obs.time - self.gait_since >= self.opts.settle;
+        let moved =
+            e.windows > 0 && self.moved(&e) && obs.time - self.gait_since >= self.opts.settle;
         if !(due || moved) {
             return;
         }

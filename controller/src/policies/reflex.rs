@@ -388,7 +388,9 @@ impl Reflex {
             // energy reflex: own mileage against the task's, own energy against its share
             let power = s.power.max(0.0) * self.length / s.length;
             let mileage_error = if s.speed > 0.0 && power > 0.0 {
-                (s.speed / power / self.target_mileage).ln().clamp(-1.0, 1.0)
+                (s.speed / power / self.target_mileage)
+                    .ln()
+                    .clamp(-1.0, 1.0)
             } else if s.speed <= 0.0 && power > 0.0 {
                 -1.0
             } else {
@@ -396,8 +398,7 @@ impl Reflex {
             };
             let share = self.budget_per_length * s.length;
             let travelled = s.position - s.start;
-            let budget =
-                (share * travelled / self.distance * (1.0 - o.margin) - s.work) / share;
+            let budget = (share * travelled / self.distance * (1.0 - o.margin) - s.work) / share;
             let mut da = o.mileage_gain * mileage_error + o.budget_gain * budget;
             if tension > self.tension_limit {
                 da -= o.stress_gain * (tension / self.tension_limit - 1.0);
@@ -499,5 +500,4 @@ impl Reflex {
             self.segments.iter().map(|s| s.omega).sum::<f64>() / n,
         )
     }
-
 }
