@@ -264,11 +264,7 @@ impl Plan {
             limits: self.limits,
             body_length: BodyLength::Fixed(self.length),
         };
-        let grid = GridSpec {
-            omega_points: self.grid,
-            k_points: self.grid,
-            refine: true,
-        };
+        let grid = GridSpec::new(self.grid, self.grid);
         let mut wave = None;
         let mut prediction = None;
         match problem.optimize(&ModelChoice::Improved(model), &grid) {
