@@ -416,6 +416,8 @@ impl FrictionEstimator {
         self.solve();
     }
 
+    // 3 x 3 matrix algebra reads best with indices
+    #[allow(clippy::needless_range_loop)]
     fn solve(&mut self) {
         let mut a = self.info;
         let mut b = self.rhs;
@@ -472,6 +474,7 @@ impl FrictionEstimator {
 }
 
 /// The inverse of a symmetric positive definite 3 x 3 matrix (Cholesky), `None` if it is not.
+#[allow(clippy::needless_range_loop)]
 fn invert_spd(a: &M3) -> Option<M3> {
     let mut l = [[0.0f64; 3]; 3];
     for i in 0..3 {
@@ -510,6 +513,7 @@ mod tests {
     use super::*;
 
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn the_inverse_of_a_known_matrix() {
         let a = [[4.0, 2.0, 0.6], [2.0, 5.0, 1.0], [0.6, 1.0, 3.0]];
         let inv = invert_spd(&a).unwrap();

@@ -136,8 +136,8 @@ fn a_reflex_segment_uses_only_local_sensing() {
     // its own nodes (and a neighbour's anchor) do change it
     let mut u3 = u1.clone();
     let mut s3 = s0.clone();
-    for i in 32..40 {
-        u3[i] += 3e-3 * (i as f64).cos();
+    for (i, x) in u3.iter_mut().enumerate().take(40).skip(32) {
+        *x += 3e-3 * (i as f64).cos();
     }
     s3[41] = !s3[41];
     let own = field(base.clone().act(&observation(1, &u3, &v0, &t0, &s3)));

@@ -107,7 +107,7 @@ impl AdaptiveOptions {
             "trigger" => self.trigger = value,
             "grid" | "window" => {
                 anyhow::ensure!(
-                    value >= 1.0 && value <= 1e6 && value.fract() == 0.0,
+                    (1.0..=1e6).contains(&value) && value.fract() == 0.0,
                     "invalid adaptive {key} = {value}: allowed a whole number >= 1"
                 );
                 if key == "grid" {
