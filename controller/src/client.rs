@@ -7,7 +7,9 @@
 
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{bounded, unbounded, Receiver};
+use std::sync::Arc;
+
+use crossbeam_channel::{unbounded, Receiver};
 use serde::Serialize;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
@@ -19,10 +21,16 @@ use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
 use crawler_protocol::{
     decode, encode, Actuation as ActuationMsg, ModelInfo, ModelPrediction,
-    Prediction as PredictionMsg, Rejections, Role, RunKeys, Series, State, Status, WaveMsg,
-    PROTOCOL_VERSION,
+    Prediction as PredictionMsg, Rejections, Role, RunKeys, RunLimits, Series, State, Status,
+    WaveMsg, PROTOCOL_VERSION,
 };
-use crawler_transport::Network;
+use crawler_transport::budget::{ByteBudget, Charged};
+use crawler_transport::gate::{self, Gate, Refused};
+use crawler_transport::{Credential, Network, Seal};
+
+/// The smallest byte budget of the state inbox (states and the plant's statuses): a plant has
+/// one state in flight; this holds eight of a 36 000-cell run's.
+pub const STATE_INBOX_BYTES: usize = 8 << 20;
 
 use crate::controller::{Actuation, Context, Observation, PolicyOptions};
 use crate::operating_point::OperatingPoint;
@@ -253,45 +261,265 @@ pub fn predictions(ctx: &Context, wave: Wave) -> Vec<ModelPrediction> {
     ]
 }
 
+/// The plant's liveliness (never dropped).
 enum Event {
     Up(String),
     Down(String),
-    Status(Status),
+}
+
+/// The controller's session and what it checks arriving messages with.
+struct Link {
+    session: zenoh::Session,
+    credential: Option<Credential>,
+    seal: Option<Seal>,
+    limit: usize,
+}
+
+impl Link {
+    /// Connects to the plant presenting `credential`'s password (if any), reassembling messages
+    /// of at most `limit` bytes; `None` if `give_up` says so first.
+    fn connect(
+        network: &crawler_transport::Network,
+        credential: Option<Credential>,
+        limit: usize,
+        give_up: &mut dyn FnMut() -> bool,
+    ) -> anyhow::Result<Option<Self>> {
+        let Some((session, credential)) = crawler_transport::connect_client(
+            Role::Controller,
+            network,
+            credential,
+            limit,
+            give_up,
+        )?
+        else {
+            return Ok(None);
+        };
+        let seal = credential.as_ref().map(|c| Seal::new(&c.message_key()));
+        Ok(Some(Self {
+            session,
+            credential,
+            seal,
+            limit,
+        }))
+    }
+
+    fn close(self) {
+        let _ = self.session.close().wait();
+    }
 }
 
 /// Runs the controller until the run ends.
 pub fn run(opts: ClientOptions, interrupt: Receiver<Interrupt>) -> anyhow::Result<ClientOutcome> {
     let keys = RunKeys::new(&opts.network.run_id)?;
     let id = crawler_transport::process_id();
-    let session = crawler_transport::open(Role::Controller, &opts.network)?;
-    let outcome = serve(&session, &keys, &id, &opts, &interrupt);
-    let _ = session.close().wait();
+    let deadline = Instant::now() + opts.wait_timeout;
+    let credential =
+        opts.network
+            .wait_for_credential("crawler-controller", opts.wait_timeout, &|| {
+                !interrupt.is_empty()
+            })?;
+    if credential.is_none() {
+        eprintln!(
+            "crawler-controller: warning: unauthenticated (--no-auth): this controller cannot tell its plant's messages from anyone else's"
+        );
+    }
+    eprintln!(
+        "crawler-controller: waiting for the plant of {} (start it with: crawler-plant run --run-id {})",
+        opts.network.describe(),
+        keys.run()
+    );
+    let (intr, wait_timeout) = (&interrupt, opts.wait_timeout);
+    let waited = |deadline: Instant| {
+        move || -> Option<ClientOutcome> {
+            if !intr.is_empty() {
+                return Some(ClientOutcome::Ended {
+                    reason: "interrupted while waiting for the plant".into(),
+                    exit: Exit::Interrupted,
+                });
+            }
+            (Instant::now() >= deadline).then(|| ClientOutcome::Ended {
+                reason: format!(
+                    "no plant answered within {:.0} s",
+                    wait_timeout.as_secs_f64()
+                ),
+                exit: Exit::Timeout,
+            })
+        }
+    };
+    let give_up = waited(deadline);
+    let mut ended = None;
+    let link = Link::connect(
+        &opts.network,
+        credential,
+        RunLimits::before_model(),
+        &mut || {
+            ended = give_up();
+            ended.is_some()
+        },
+    )?;
+    let Some(link) = link else {
+        return Ok(ended.expect("gave up for a reason"));
+    };
+    let info = match discover(&link, &keys, &id, &waited(deadline))? {
+        Ok(info) => info,
+        Err(ended) => {
+            link.close();
+            return Ok(ended);
+        }
+    };
+    // The run's largest legal message may exceed what the first session reassembles (very
+    // large grids): then reconnect with the run's own limit.
+    let limits = RunLimits::new(info.cells as usize);
+    let link = if limits.largest() > link.limit {
+        let credential = link.credential.clone();
+        link.close();
+        let give_up = waited(Instant::now() + opts.wait_timeout);
+        let mut ended = None;
+        match Link::connect(&opts.network, credential, limits.largest(), &mut || {
+            ended = give_up();
+            ended.is_some()
+        })? {
+            Some(link) => link,
+            None => return Ok(ended.expect("gave up for a reason")),
+        }
+    } else {
+        link
+    };
+    let outcome = serve(&link, &keys, &id, &opts, &interrupt, info);
+    link.close();
     outcome
 }
 
+/// Publishes the controller's status (sealed in an authenticated run).
+fn publish_status(
+    publisher: &zenoh::pubsub::Publisher<'_>,
+    seal: Option<&Seal>,
+    id: &str,
+    (state, message, step): (&str, &str, u64),
+) {
+    let s = Status {
+        v: PROTOCOL_VERSION,
+        role: Role::Controller.as_str().into(),
+        id: id.to_string(),
+        state: state.into(),
+        message: message.into(),
+        step,
+        rejected: Rejections::default(),
+        summary: None,
+    };
+    let _ = gate::put(publisher, seal, encode(&s));
+}
+
+/// Waits for the plant's (sealed) model description, retrying until it answers or `give_up`
+/// gives a reason to stop.
+fn discover(
+    link: &Link,
+    keys: &RunKeys,
+    id: &str,
+    give_up: &dyn Fn() -> Option<ClientOutcome>,
+) -> anyhow::Result<Result<ModelInfo, ClientOutcome>> {
+    let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
+    let status_pub = link
+        .session
+        .declare_publisher(keys.status(Role::Controller))
+        .wait()
+        .map_err(z)?;
+    publish_status(
+        &status_pub,
+        link.seal.as_ref(),
+        id,
+        ("waiting", "waiting for the plant's model description", 0),
+    );
+    let gate = Gate::new(
+        RunLimits::before_model(),
+        link.seal.clone(),
+        Arc::new(Refused::default()),
+    );
+    loop {
+        if let Some(ended) = give_up() {
+            return Ok(Err(ended));
+        }
+        let replies = link
+            .session
+            .get(keys.model())
+            .timeout(Duration::from_millis(500))
+            .wait()
+            .map_err(z)?;
+        let mut found = None;
+        while let Ok(reply) = replies.recv() {
+            let Ok(sample) = reply.result() else { continue };
+            let Ok(bytes) = gate.admit(sample) else {
+                eprintln!("crawler-controller: ignoring a model description without a valid seal");
+                continue;
+            };
+            match decode::<ModelInfo>(&bytes) {
+                Ok(info) if info.run == keys.run() => found = Some(info),
+                Ok(info) => eprintln!(
+                    "crawler-controller: ignoring the model description of another run ({})",
+                    info.run
+                ),
+                Err(e) => {
+                    eprintln!("crawler-controller: ignoring an invalid model description: {e}")
+                }
+            }
+        }
+        if let Some(info) = found {
+            return Ok(Ok(info));
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
 fn serve(
-    session: &zenoh::Session,
+    link: &Link,
     keys: &RunKeys,
     id: &str,
     opts: &ClientOptions,
     interrupt: &Receiver<Interrupt>,
+    info: ModelInfo,
 ) -> anyhow::Result<ClientOutcome> {
     let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
-    let (state_tx, state_rx) = bounded::<Vec<u8>>(1024);
+    let session = &link.session;
+    let seal = link.seal.as_ref();
+    let limits = RunLimits::new(info.cells as usize);
+    // What arrives is checked in the callbacks (size, seal) and queued within a byte budget.
+    let refused = Arc::new(Refused::default());
+    let budget = ByteBudget::new(STATE_INBOX_BYTES.max(8 * limits.state()));
+    let (state_tx, state_rx) = unbounded::<Charged<Vec<u8>>>();
+    let state_gate = Gate::new(limits.state(), link.seal.clone(), refused.clone());
+    let state_budget = budget.clone();
     let _states = session
         .declare_subscriber(keys.state())
         .callback(move |s| {
-            let _ = state_tx.try_send(s.payload().to_bytes().into_owned());
+            if let Ok(bytes) = state_gate.admit(&s) {
+                let len = bytes.len();
+                if let Some(charged) = state_budget.charge(bytes, len) {
+                    let _ = state_tx.send(charged);
+                }
+            }
         })
         .wait()
         .map_err(z)?;
     let (ev_tx, ev_rx) = unbounded::<Event>();
-    let ev2 = ev_tx.clone();
+    // Statuses are few (about one a second); a flood of them shares the states' byte budget.
+    let (status_tx, status_rx) = unbounded::<Charged<Status>>();
+    let status_gate = Gate::new(
+        RunLimits::text_message(),
+        link.seal.clone(),
+        refused.clone(),
+    );
+    let status_budget = budget.clone();
     let _status = session
         .declare_subscriber(keys.status(Role::Plant))
         .callback(move |s| {
-            if let Ok(st) = decode::<Status>(&s.payload().to_bytes()) {
-                let _ = ev2.send(Event::Status(st));
+            let Ok(bytes) = status_gate.admit(&s) else {
+                return;
+            };
+            let len = bytes.len();
+            if let Ok(st) = decode::<Status>(&bytes) {
+                if let Some(charged) = status_budget.charge(st, len) {
+                    let _ = status_tx.send(charged);
+                }
             }
         })
         .wait()
@@ -301,65 +529,9 @@ fn serve(
         .wait()
         .map_err(z)?;
     let publish_status = |state: &str, message: &str, step: u64| {
-        let s = Status {
-            v: PROTOCOL_VERSION,
-            role: Role::Controller.as_str().into(),
-            id: id.to_string(),
-            state: state.into(),
-            message: message.into(),
-            step,
-            rejected: Rejections::default(),
-            summary: None,
-        };
-        let _ = status_pub.put(encode(&s)).wait();
+        publish_status(&status_pub, seal, id, (state, message, step));
     };
 
-    // The plant's description; retried until the plant answers.
-    let what = format!(
-        "waiting for the plant of {} (start it with: crawler-plant run --run-id {})",
-        opts.network.describe(),
-        keys.run()
-    );
-    eprintln!("crawler-controller: {what}");
-    publish_status("waiting", &what, 0);
-    let deadline = Instant::now() + opts.wait_timeout;
-    let info = loop {
-        if interrupt.try_recv().is_ok() {
-            return Ok(ClientOutcome::Ended {
-                reason: "interrupted while waiting for the plant".into(),
-                exit: Exit::Interrupted,
-            });
-        }
-        if Instant::now() >= deadline {
-            return Ok(ClientOutcome::Ended {
-                reason: format!(
-                    "no plant answered within {:.0} s",
-                    opts.wait_timeout.as_secs_f64()
-                ),
-                exit: Exit::Timeout,
-            });
-        }
-        let replies = session
-            .get(keys.model())
-            .timeout(Duration::from_millis(500))
-            .wait()
-            .map_err(z)?;
-        let mut found = None;
-        while let Ok(reply) = replies.recv() {
-            if let Ok(sample) = reply.result() {
-                match decode::<ModelInfo>(&sample.payload().to_bytes()) {
-                    Ok(info) => found = Some(info),
-                    Err(e) => {
-                        eprintln!("crawler-controller: ignoring an invalid model description: {e}")
-                    }
-                }
-            }
-        }
-        match found {
-            Some(info) => break info,
-            None => std::thread::sleep(Duration::from_millis(200)),
-        }
-    };
     let ctx = context_of(&info, &opts.scenario, opts.options.clone());
     let mut policy = crate::policies::build(&opts.policy, &ctx)?;
     eprintln!(
@@ -404,6 +576,10 @@ fn serve(
     publish_status("running", &format!("policy {}", policy.name()), 0);
 
     let mut last_wave: Option<Wave> = None;
+    // The plant's last state (last: true) reached us: only then can it have finished. A
+    // `finished` status that overtakes it waits for it.
+    let mut saw_last_state = false;
+    let mut pending_finished: Option<Status> = None;
     let mut last_predictions = Vec::new();
     let mut answered = 0u64;
     let plant_summary: Option<serde_json::Value>;
@@ -429,10 +605,29 @@ fn serve(
                 Ok(Event::Down(pid)) if plant_id.as_deref() == Some(pid.as_str()) => {
                     return Ok(ClientOutcome::Ended { reason: "the plant left the run".into(), exit: Exit::PeerLost });
                 }
-                Ok(Event::Status(st)) if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" => {
+                _ => {}
+            },
+            recv(status_rx) -> st => {
+                let Ok(st) = st else { continue };
+                let (st, _charge) = st.split();
+                if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" {
                     ignored += 1;
+                    continue;
                 }
-                Ok(Event::Status(st)) => match st.state.as_str() {
+                if st.state == "finished" && !saw_last_state && terminal_is_consistent(&st, &info, true) {
+                    // the last state is still on its way (another channel): wait for it
+                    pending_finished = Some(st);
+                    continue;
+                }
+                if !terminal_is_consistent(&st, &info, saw_last_state) {
+                    ignored += 1;
+                    eprintln!(
+                        "crawler-controller: ignoring an inconsistent plant status {:?} at step {} (the run ends at step {})",
+                        st.state, st.step, info.last_step
+                    );
+                    continue;
+                }
+                match st.state.as_str() {
                     "finished" => {
                         plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
                         break;
@@ -442,12 +637,11 @@ fn serve(
                         return Ok(ClientOutcome::Ended { reason: format!("the plant {}: {}", st.state, st.message), exit: Exit::Failure });
                     }
                     _ => {}
-                },
-                _ => {}
+                }
             },
             recv(state_rx) -> bytes => {
                 let Ok(bytes) = bytes else { continue };
-                let state: State = match decode(&bytes) {
+                let state: State = match decode(bytes.get()) {
                     Ok(s) => s,
                     Err(e) => {
                         ignored += 1;
@@ -470,6 +664,13 @@ fn serve(
                     continue;
                 }
                 if state.last {
+                    if state.step == info.last_step {
+                        saw_last_state = true;
+                        if let Some(st) = pending_finished.take() {
+                            plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
+                            break;
+                        }
+                    }
                     continue; // the plant's finished status ends the run
                 }
                 let obs = Observation {
@@ -497,7 +698,7 @@ fn serve(
                             wave: WaveMsg { f0: w.f0, k: w.k, omega: w.omega, phase: w.phase },
                             models: last_predictions.clone(),
                         };
-                        let _ = prediction_pub.put(encode(&msg)).wait();
+                        let _ = gate::put(&prediction_pub, seal, encode(&msg));
                         last_wave = Some(w);
                     }
                 }
@@ -508,7 +709,7 @@ fn serve(
                     wave: wave.map(|w| WaveMsg { f0: w.f0, k: w.k, omega: w.omega, phase: w.phase }),
                     field,
                 };
-                actuation_pub.put(encode(&msg)).wait().map_err(z)?;
+                gate::put(&actuation_pub, seal, encode(&msg)).map_err(z)?;
                 answered += 1;
             },
             default(Duration::from_millis(500)) => {
@@ -523,8 +724,15 @@ fn serve(
         }
     }
     publish_status("finished", &format!("answered {answered} steps"), answered);
-    if ignored > 0 {
-        eprintln!("crawler-controller: ignored {ignored} messages (invalid, or not from this run's plant)");
+    let refused_total = refused.oversize() + refused.unsealed() + budget.overflow();
+    if ignored > 0 || refused_total > 0 {
+        eprintln!(
+            "crawler-controller: ignored {ignored} messages (invalid, or not from this run's plant); refused at arrival: {} oversized, {} without a valid seal, {} beyond the inbox's {} bytes",
+            refused.oversize(),
+            refused.unsealed(),
+            budget.overflow(),
+            budget.cap()
+        );
     }
     Ok(ClientOutcome::Finished(Box::new(FinalSummary {
         policy: policy.name().to_string(),
@@ -538,4 +746,15 @@ fn serve(
         predictions: last_predictions,
         steps: answered,
     })))
+}
+
+/// Whether a plant status can be what it says: `finished` only at the run's last step and after
+/// its last state reached this controller; `failed` and `stopped` only within the run's steps.
+/// Non-terminal states are always consistent.
+pub fn terminal_is_consistent(st: &Status, info: &ModelInfo, saw_last_state: bool) -> bool {
+    match st.state.as_str() {
+        "finished" => st.step == info.last_step && saw_last_state,
+        "failed" | "stopped" => st.step <= info.last_step,
+        _ => true,
+    }
 }
