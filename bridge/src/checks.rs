@@ -187,14 +187,21 @@ pub fn prediction(p: &Prediction, f: &RunFacts, controller: Option<&str>) -> Res
 }
 
 /// A plant status that can be what it says: `finished` only at the run's last step, `failed`
-/// and `stopped` within the run's steps.
-pub fn terminal(s: &Status, f: &RunFacts) -> Result<(), String> {
-    match s.state.as_str() {
-        "finished" if s.step != f.last_step => Err(format!(
-            "status finished at step {}: the run ends at step {}",
+/// and `stopped` within the run's steps. The run's last step is that of the plant's last state
+/// (`last_state`, once it came: the model's last step, or an earlier one where the plant decided
+/// its task and ended the run), else the model's.
+pub fn terminal(s: &Status, f: &RunFacts, last_state: Option<u64>) -> Result<(), String> {
+    match (s.state.as_str(), last_state) {
+        ("finished", Some(l)) if s.step != l => Err(format!(
+            "status finished at step {}: the plant's last state was step {l}",
+            s.step
+        )),
+        ("finished", None) if s.step != f.last_step => Err(format!(
+            "status finished at step {}: the run ends at step {} (or earlier, at the step of the \
+             plant's last state, which has not come)",
             s.step, f.last_step
         )),
-        "failed" | "stopped" => f.step_ok("status", s.step),
+        ("finished" | "failed" | "stopped", _) => f.step_ok("status", s.step),
         _ => Ok(()),
     }
 }
@@ -369,13 +376,22 @@ mod tests {
             rejected: Default::default(),
             summary: None,
         };
-        terminal(&status("finished", 8000), &f).unwrap();
-        assert!(terminal(&status("finished", 4000), &f)
+        terminal(&status("finished", 8000), &f, None).unwrap();
+        terminal(&status("finished", 8000), &f, Some(8000)).unwrap();
+        assert!(terminal(&status("finished", 4000), &f, None)
             .unwrap_err()
             .contains("ends at step 8000"));
-        terminal(&status("failed", 4000), &f).unwrap();
-        assert!(terminal(&status("stopped", 9000), &f).is_err());
-        terminal(&status("running", 4000), &f).unwrap();
+        // a task-mode run the plant ended at step 4000: its last state said so
+        terminal(&status("finished", 4000), &f, Some(4000)).unwrap();
+        assert!(terminal(&status("finished", 8000), &f, Some(4000))
+            .unwrap_err()
+            .contains("last state was step 4000"));
+        assert!(terminal(&status("finished", 3999), &f, Some(4000)).is_err());
+        // never beyond the run
+        assert!(terminal(&status("finished", 9000), &f, Some(9000)).is_err());
+        terminal(&status("failed", 4000), &f, None).unwrap();
+        assert!(terminal(&status("stopped", 9000), &f, None).is_err());
+        terminal(&status("running", 4000), &f, None).unwrap();
     }
 
     #[test]

@@ -113,7 +113,15 @@ pub struct Recorder {
     early: Vec<Incoming>,
     controller_id: Option<String>,
     invalid_by_kind: BTreeMap<&'static str, u64>,
+    /// Step of the plant's last state (last: true), once it came: the run's last step.
+    plant_last_state: Option<u64>,
+    /// The plant's `finished` statuses for a step before the model's last that came before any
+    /// last state (a task-mode run the plant ended early), by step; a few at most.
+    held_finished: BTreeMap<u64, Status>,
 }
+
+/// Most `finished` statuses held while the plant's last state is awaited.
+const HELD_FINISHED_MAX: usize = 8;
 
 /// A recording written to `path`, with the default layout.
 ///
@@ -170,6 +178,8 @@ impl Recorder {
             early: Vec::new(),
             controller_id: None,
             invalid_by_kind: BTreeMap::new(),
+            plant_last_state: None,
+            held_finished: BTreeMap::new(),
         };
         me.log_static()?;
         Ok(me)
@@ -334,6 +344,7 @@ impl Recorder {
                         self.controller_id
                             .get_or_insert_with(|| s.controller.clone());
                     }
+                    let last = (s.last && self.plant_last_state.is_none()).then_some(s.step);
                     self.counts.states += 1;
                     if self.pending.contains_key(&s.step)
                         || self.next_step.is_some_and(|n| s.step < n)
@@ -343,6 +354,13 @@ impl Recorder {
                         self.pending.insert(s.step, s);
                     }
                     self.drain(false)?;
+                    if let Some(step) = last {
+                        // the run's last step: a finished status held for it is the plant's
+                        self.plant_last_state = Some(step);
+                        if let Some(st) = self.held_finished.remove(&step) {
+                            self.log_status(&st)?;
+                        }
+                    }
                 }
                 Err(_) => self.counts.rejected += 1,
             },
@@ -438,6 +456,18 @@ impl Recorder {
     /// Records every pending state (end of run or shutdown) and flushes.
     pub fn finish(&mut self) -> anyhow::Result<()> {
         self.drain(true)?;
+        // finished statuses no last state of the plant confirmed: not the plant's end
+        for (step, _) in std::mem::take(&mut self.held_finished) {
+            let why = match self.plant_last_state {
+                Some(l) => {
+                    format!("status finished at step {step}: the plant's last state was step {l}")
+                }
+                None => format!(
+                    "status finished at step {step}: no last state of the plant came for it"
+                ),
+            };
+            self.invalid("status", &why);
+        }
         if !self.invalid_by_kind.is_empty() {
             let kinds: Vec<String> = self
                 .invalid_by_kind
@@ -736,9 +766,19 @@ impl Recorder {
             return Ok(());
         }
         if from_plant {
-            if let Some(f) = &self.facts {
-                if let Err(reason) = checks::terminal(s, f) {
-                    self.invalid("status", &reason);
+            if let Some(f) = self.facts {
+                if let Err(reason) = checks::terminal(s, &f, self.plant_last_state) {
+                    let early = s.state == "finished"
+                        && self.plant_last_state.is_none()
+                        && s.step < f.last_step;
+                    if early && self.held_finished.len() < HELD_FINISHED_MAX {
+                        // a task-mode run may end early: its last state may be on its way
+                        self.held_finished
+                            .entry(s.step)
+                            .or_insert_with(|| s.clone());
+                    } else {
+                        self.invalid("status", &reason);
+                    }
                     return Ok(());
                 }
             }

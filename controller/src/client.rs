@@ -5,6 +5,7 @@
 //! (which is how it joins the run) and then answers every `State(n)` with `Actuation(n)`. It also
 //! publishes the models' predictions for the wave it applies, for the recorder.
 
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use std::sync::Arc;
@@ -576,10 +577,13 @@ fn serve(
     publish_status("running", &format!("policy {}", policy.name()), 0);
 
     let mut last_wave: Option<Wave> = None;
-    // The plant's last state (last: true) reached us: only then can it have finished. A
-    // `finished` status that overtakes it waits for it.
-    let mut saw_last_state = false;
-    let mut pending_finished: Option<Status> = None;
+    // The step of the plant's last state (last: true) to us: the run's last step, which is the
+    // model's `last_step` unless the plant ended the run early (task mode). Only at that step can
+    // the plant have finished; a `finished` status that overtakes the last state waits for it
+    // (a few at most, each dropped once the run goes on past its step).
+    let mut last_state_step: Option<u64> = None;
+    let mut latest_step: Option<u64> = None;
+    let mut pending_finished: BTreeMap<u64, Status> = BTreeMap::new();
     let mut last_predictions = Vec::new();
     let mut answered = 0u64;
     let plant_summary: Option<serde_json::Value>;
@@ -614,12 +618,19 @@ fn serve(
                     ignored += 1;
                     continue;
                 }
-                if st.state == "finished" && !saw_last_state && terminal_is_consistent(&st, &info, true) {
-                    // the last state is still on its way (another channel): wait for it
-                    pending_finished = Some(st);
+                if st.state == "finished"
+                    && last_state_step.is_none()
+                    && finished_may_follow(&st, &info, latest_step)
+                {
+                    // the last state may still be on its way (another channel): wait for it
+                    if pending_finished.len() < PENDING_FINISHED_MAX {
+                        pending_finished.entry(st.step).or_insert(st);
+                    } else {
+                        ignored += 1;
+                    }
                     continue;
                 }
-                if !terminal_is_consistent(&st, &info, saw_last_state) {
+                if !terminal_is_consistent(&st, &info, last_state_step) {
                     ignored += 1;
                     eprintln!(
                         "crawler-controller: ignoring an inconsistent plant status {:?} at step {} (the run ends at step {})",
@@ -664,14 +675,29 @@ fn serve(
                     continue;
                 }
                 if state.last {
-                    if state.step == info.last_step {
-                        saw_last_state = true;
-                        if let Some(st) = pending_finished.take() {
+                    if last_state_step.is_none() && last_state_fits(state.step, &info, latest_step) {
+                        last_state_step = Some(state.step);
+                        if let Some(st) = pending_finished.remove(&state.step) {
                             plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
                             break;
                         }
+                    } else {
+                        ignored += 1;
                     }
                     continue; // the plant's finished status ends the run
+                }
+                latest_step = Some(state.step);
+                // a finished status for a step the run went on past was not the plant's
+                while let Some(entry) = pending_finished.first_entry() {
+                    if *entry.key() > state.step {
+                        break;
+                    }
+                    let st = entry.remove();
+                    ignored += 1;
+                    eprintln!(
+                        "crawler-controller: ignoring an inconsistent plant status \"finished\" at step {} (the run went on to step {})",
+                        st.step, state.step
+                    );
                 }
                 let obs = Observation {
                     step: state.step,
@@ -748,13 +774,165 @@ fn serve(
     })))
 }
 
-/// Whether a plant status can be what it says: `finished` only at the run's last step and after
-/// its last state reached this controller; `failed` and `stopped` only within the run's steps.
-/// Non-terminal states are always consistent.
-pub fn terminal_is_consistent(st: &Status, info: &ModelInfo, saw_last_state: bool) -> bool {
+/// Most `finished` statuses held while the plant's last state is awaited.
+const PENDING_FINISHED_MAX: usize = 8;
+
+/// Whether a plant status can be what it says: `finished` only at the step of the plant's last
+/// state to this controller (`last_state_step`: the model's last step, or an earlier one where
+/// the plant decided its task and ended the run), `failed` and `stopped` only within the run's
+/// steps. Non-terminal states are always consistent.
+pub fn terminal_is_consistent(st: &Status, info: &ModelInfo, last_state_step: Option<u64>) -> bool {
     match st.state.as_str() {
-        "finished" => st.step == info.last_step && saw_last_state,
+        "finished" => st.step <= info.last_step && last_state_step == Some(st.step),
         "failed" | "stopped" => st.step <= info.last_step,
         _ => true,
+    }
+}
+
+/// Whether a `finished` status that arrives before the plant's last state can still turn out
+/// consistent: its step is within the run and after the latest state this controller answered.
+pub fn finished_may_follow(st: &Status, info: &ModelInfo, latest_step: Option<u64>) -> bool {
+    st.step <= info.last_step && latest_step.is_none_or(|l| st.step > l)
+}
+
+/// Whether a state marked `last` at `step` can be the plant's last: within the run, and either
+/// the model's last step or the step right after the latest state this controller answered (the
+/// plant ends a task-mode run early, at the step that decided the task).
+pub fn last_state_fits(step: u64, info: &ModelInfo, latest_step: Option<u64>) -> bool {
+    step <= info.last_step && (step == info.last_step || latest_step.is_some_and(|l| l + 1 == step))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(last_step: u64) -> ModelInfo {
+        ModelInfo {
+            v: PROTOCOL_VERSION,
+            run: "r".into(),
+            cells: 2,
+            length: 1.0,
+            step: 0.001,
+            start_time: 0.0,
+            last_step,
+            area: 1e-4,
+            density: 0.1,
+            youngs_modulus: 140e3,
+            viscous: 1.0,
+            dry: 1.0,
+            eps: 0.1,
+            n_f: 0.5,
+            settle: 5.0,
+            model_description: "{}".into(),
+            boundary: "periodic".into(),
+            disclosed: true,
+        }
+    }
+
+    fn status(state: &str, step: u64) -> Status {
+        Status {
+            v: PROTOCOL_VERSION,
+            role: "plant".into(),
+            id: "p".into(),
+            state: state.into(),
+            message: String::new(),
+            step,
+            rejected: Default::default(),
+            summary: None,
+        }
+    }
+
+    #[test]
+    fn finished_is_believed_only_at_the_step_of_the_plants_last_state() {
+        let info = info(8000);
+        // the whole run
+        assert!(terminal_is_consistent(
+            &status("finished", 8000),
+            &info,
+            Some(8000)
+        ));
+        // before the last state came, and at another step than the last state's
+        assert!(!terminal_is_consistent(
+            &status("finished", 8000),
+            &info,
+            None
+        ));
+        assert!(!terminal_is_consistent(
+            &status("finished", 1000),
+            &info,
+            Some(8000)
+        ));
+        // a task-mode run the plant ended at step 4321 (its last state said so)
+        assert!(terminal_is_consistent(
+            &status("finished", 4321),
+            &info,
+            Some(4321)
+        ));
+        assert!(!terminal_is_consistent(
+            &status("finished", 8000),
+            &info,
+            Some(4321)
+        ));
+        // never beyond the run, whatever state came
+        assert!(!terminal_is_consistent(
+            &status("finished", 9000),
+            &info,
+            Some(9000)
+        ));
+        // failed and stopped: anywhere within the run
+        assert!(terminal_is_consistent(&status("failed", 10), &info, None));
+        assert!(terminal_is_consistent(
+            &status("stopped", 8000),
+            &info,
+            None
+        ));
+        assert!(!terminal_is_consistent(
+            &status("failed", 8001),
+            &info,
+            None
+        ));
+        assert!(!terminal_is_consistent(
+            &status("stopped", u64::MAX),
+            &info,
+            None
+        ));
+        assert!(terminal_is_consistent(
+            &status("running", 99_999),
+            &info,
+            None
+        ));
+    }
+
+    #[test]
+    fn a_last_state_fits_only_right_after_the_latest_answered_step_or_at_the_end() {
+        let info = info(8000);
+        assert!(last_state_fits(8000, &info, Some(7999)));
+        // resumed at the end: no state answered before
+        assert!(last_state_fits(8000, &info, None));
+        // task mode: right after the step just answered
+        assert!(last_state_fits(4321, &info, Some(4320)));
+        // a gap, a step already answered, or beyond the run: not the plant's last state
+        assert!(!last_state_fits(4321, &info, Some(100)));
+        assert!(!last_state_fits(4321, &info, Some(4321)));
+        assert!(!last_state_fits(4321, &info, None));
+        assert!(!last_state_fits(999_999, &info, Some(999_998)));
+        // a finished status ahead of the last state may wait for it only if it is ahead of the
+        // run and within it
+        assert!(finished_may_follow(
+            &status("finished", 4321),
+            &info,
+            Some(4320)
+        ));
+        assert!(finished_may_follow(&status("finished", 8000), &info, None));
+        assert!(!finished_may_follow(
+            &status("finished", 1000),
+            &info,
+            Some(4320)
+        ));
+        assert!(!finished_may_follow(
+            &status("finished", 8001),
+            &info,
+            Some(4320)
+        ));
     }
 }
