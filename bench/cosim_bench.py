@@ -131,8 +131,9 @@ def main():
         _, state_bytes, _, _ = lockstep(a.cells, 6000, False, work)  # warm-up; learns the state size
         for t in range(a.trials):
             pp.append(pingpong(state_bytes, a.seconds))
-            bare.append(lockstep(a.cells, a.steps, False, work)[0])
-            noauth.append(lockstep(a.cells, a.steps, False, work, auth=False)[0])
+            # with and without authentication back to back, in alternating order
+            for auth in (True, False) if t % 2 == 0 else (False, True):
+                (bare if auth else noauth).append(lockstep(a.cells, a.steps, False, work, auth=auth)[0])
             rate, _, size, recorded = lockstep(a.cells, a.steps, True, work)
             withb.append(rate)
             sizes.append(size / recorded)

@@ -6,7 +6,8 @@
 //! - a process holding the credential that sends every kind of malformed or inconsistent
 //!   message: each is rejected and counted, never applied;
 //! - floods before and after the join: every process stays within its memory budget.
-//! Every attack leaves the run's result (its state digest) unchanged.
+//! Every attack leaves the run's result (its state digest) unchanged and every process within
+//! its memory budget.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -26,6 +27,13 @@ use crawler_transport::{Access, Seal};
 
 /// The memory budget of every process: growth of its resident memory above its idle size.
 const BUDGET_MIB: f64 = 64.0;
+
+/// The recorder of the attacked runs records the fields of every 64th state (and every state's
+/// scalars). Its working set grows with what it records, attack or not: rerun's buffers take it
+/// about 55 MiB above its idle size when it records the fields of every 4th state of a 512-cell
+/// run (measured without any attack); recording fewer fields keeps what an attack would add
+/// visible against [`BUDGET_MIB`].
+const RECORDER: &[&str] = &["--every", "64"];
 
 /// The wave policy of these runs, and the same run in process.
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
@@ -275,10 +283,15 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
     let run = Run::new("hostile");
     let rrd = run.path("hostile.rrd");
     let plant = run.plant(&["--eps", "1", "--t-end", "8", "--json"]);
-    let bridge = run.bridge(&rrd, &[]);
+    let bridge = run.bridge(&rrd, RECORDER);
     bridge.wait_for_stderr("plant found", Duration::from_secs(30));
     let controller = run.controller(WAVE);
     plant.wait_for_stderr("joined run", Duration::from_secs(30));
+    let budgets = Budgets::watch(&[
+        ("plant", &plant),
+        ("controller", &controller),
+        ("recorder", &bridge),
+    ]);
 
     let credential = run.load_credential();
     let seal = Seal::new(&credential.message_key());
@@ -396,6 +409,7 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
     let p = plant.wait(Duration::from_secs(120));
     let c = controller.wait(Duration::from_secs(60));
     let b = bridge.wait(Duration::from_secs(60));
+    budgets.check();
     drop(_acts);
     let replayed = replaying.join().unwrap();
     assert!(replayed > 0, "nothing was replayed");
@@ -461,7 +475,7 @@ fn an_unauthenticated_session_reaches_nothing_on_any_key() {
     let run = Run::new("unauth");
     let rrd = run.path("unauth.rrd");
     let plant = run.plant(&["--eps", "1", "--t-end", "6", "--json"]);
-    let bridge = run.bridge(&rrd, &[]);
+    let bridge = run.bridge(&rrd, RECORDER);
     bridge.wait_for_stderr("plant found", Duration::from_secs(30));
     let session = run.session(&Access::Open, 512);
     let keys = RunKeys::new(&run.id).unwrap();
@@ -482,6 +496,11 @@ fn an_unauthenticated_session_reaches_nothing_on_any_key() {
         .unwrap();
     let controller = run.controller(WAVE);
     plant.wait_for_stderr("joined run", Duration::from_secs(30));
+    let budgets = Budgets::watch(&[
+        ("plant", &plant),
+        ("controller", &controller),
+        ("recorder", &bridge),
+    ]);
     let kinds = payloads("x");
     let all_keys = [
         keys.actuation(),
@@ -521,6 +540,7 @@ fn an_unauthenticated_session_reaches_nothing_on_any_key() {
     let p = plant.wait(Duration::from_secs(60));
     let c = controller.wait(Duration::from_secs(30));
     let b = bridge.wait(Duration::from_secs(30));
+    budgets.check();
     assert!(p.status.success(), "plant: {}", p.stderr);
     assert!(c.status.success(), "controller: {}", c.stderr);
     assert!(b.status.success(), "bridge: {}", b.stderr);
@@ -559,7 +579,7 @@ fn without_the_message_key_nobody_can_end_or_steer_the_run() {
     let run = Run::new("nokey");
     let rrd = run.path("nokey.rrd");
     let plant = run.plant(&["--eps", "1", "--t-end", "6", "--json"]);
-    let bridge = run.bridge(&rrd, &[]);
+    let bridge = run.bridge(&rrd, RECORDER);
     bridge.wait_for_stderr("plant found", Duration::from_secs(30));
     let session = run.transport_only_session(512);
     let keys = RunKeys::new(&run.id).unwrap();
@@ -607,6 +627,11 @@ fn without_the_message_key_nobody_can_end_or_steer_the_run() {
         .unwrap();
     let controller = run.controller(&[WAVE, &["--json"]].concat());
     plant.wait_for_stderr("joined run", Duration::from_secs(30));
+    let budgets = Budgets::watch(&[
+        ("plant", &plant),
+        ("controller", &controller),
+        ("recorder", &bridge),
+    ]);
     let deadline = Instant::now() + Duration::from_secs(30);
     while seen.load(Ordering::Relaxed) < 100 && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(10));
@@ -625,6 +650,7 @@ fn without_the_message_key_nobody_can_end_or_steer_the_run() {
     let p = plant.wait(Duration::from_secs(60));
     let c = controller.wait(Duration::from_secs(30));
     let b = bridge.wait(Duration::from_secs(30));
+    budgets.check();
     assert!(p.status.success(), "plant: {}", p.stderr);
     assert!(
         c.status.success(),
@@ -740,6 +766,48 @@ fn sample_peaks(pids: Vec<u32>, stop: Arc<AtomicBool>) -> std::thread::JoinHandl
             std::thread::sleep(Duration::from_millis(50));
         }
     })
+}
+
+/// The processes of a run watched while an attack goes on: each must stay within [`BUDGET_MIB`]
+/// of the resident memory it had when the watch began.
+struct Budgets {
+    names: Vec<&'static str>,
+    idle: Vec<u64>,
+    stop: Arc<AtomicBool>,
+    sampling: std::thread::JoinHandle<Vec<u64>>,
+}
+
+impl Budgets {
+    fn watch(procs: &[(&'static str, &Proc)]) -> Self {
+        let idle = procs
+            .iter()
+            .map(|(name, p)| rss_kib(p.pid()).unwrap_or_else(|| panic!("{name} ended")).0)
+            .collect();
+        let stop = Arc::new(AtomicBool::new(false));
+        let sampling = sample_peaks(procs.iter().map(|(_, p)| p.pid()).collect(), stop.clone());
+        Self {
+            names: procs.iter().map(|(name, _)| *name).collect(),
+            idle,
+            stop,
+            sampling,
+        }
+    }
+
+    /// Stops watching (call it once the processes ended) and checks every budget.
+    fn check(self) {
+        self.stop.store(true, Ordering::Relaxed);
+        let peaks = self.sampling.join().unwrap();
+        for ((name, idle), peak) in self.names.iter().zip(&self.idle).zip(peaks) {
+            let growth = peak.saturating_sub(*idle) as f64 / 1024.0;
+            eprintln!(
+                "{name}: idle {idle} KiB, peak during the attack {peak} KiB: +{growth:.1} MiB"
+            );
+            assert!(
+                growth < BUDGET_MIB,
+                "{name} grew by {growth:.1} MiB during the attack (budget {BUDGET_MIB} MiB)"
+            );
+        }
+    }
 }
 
 /// Floods every key with payloads from the legal size to 50 MB, from a session without the
