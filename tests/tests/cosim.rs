@@ -47,7 +47,8 @@ fn cosimulation_is_bit_identical_to_the_in_process_run() {
 fn the_controller_may_start_before_the_plant() {
     let run = Run::new("order");
     let controller = run.controller(WAVE);
-    controller.wait_for_stderr("waiting for the plant", Duration::from_secs(10));
+    // the plant creates the run's credential: the controller waits for it, then for the plant
+    controller.wait_for_stderr("waiting for the run's credential", Duration::from_secs(10));
     std::thread::sleep(Duration::from_millis(500));
     let plant = run.plant(PLANT);
     let p = plant.wait(Duration::from_secs(60));
@@ -179,6 +180,8 @@ fn two_runs_at_once_do_not_cross_talk() {
 
 #[test]
 fn the_python_controller_gives_the_rust_wave_trajectory() {
+    // the venv first (a fresh clone installs it): the plant's wait for a controller is bounded
+    crawler_e2e::python();
     let run = Run::new("py");
     let plant = run.plant(&["--t-end", "6", "--json"]);
     let py = run.python_controller(&["--f0", "0.5", "--alpha", "0.5"]);
