@@ -101,9 +101,9 @@ impl Inbox {
 pub enum Topic {
     /// `State(n)`, every step (reliable: the controller waits for it).
     State,
-    /// Stick-slip episodes of a step (dropped under congestion).
+    /// Stick-slip episodes of a step (reliable: the recorder records every one).
     Events,
-    /// Metrics of a closed averaging block (dropped under congestion).
+    /// Metrics of a closed averaging block (reliable).
     Metrics,
     /// The plant's status (reliable).
     Status,
@@ -161,8 +161,11 @@ impl Link {
                 .map_err(z)
         };
         let state = publisher(keys.state(), true)?;
-        let events = publisher(keys.events(), false)?;
-        let metrics = publisher(keys.metrics(), false)?;
+        // Blocking like the states: with one priority per link (QoS off, which bounds what a
+        // link reassembles) a dropping publisher lost most events and metrics behind the
+        // states' batches whenever the recorder was a little behind.
+        let events = publisher(keys.events(), true)?;
+        let metrics = publisher(keys.metrics(), true)?;
         let status = publisher(keys.status(Role::Plant), true)?;
         let (feeder, inbox) = Inbox::channel(control_rx, inbox_bytes(&limits));
         let gate = Gate::new(limits.actuation(), seal.clone(), inbox.refused.clone());

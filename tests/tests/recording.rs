@@ -62,7 +62,7 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
     assert!(rec.entity("heatmap/u").rows >= 1);
     // per-period metrics with the models' predictions overlaid
     let blocks = rec.entity("metrics/velocity/plant").rows;
-    assert!(blocks >= 40, "{blocks} metric blocks");
+    assert!(blocks >= 40, "{blocks} metric blocks; bridge: {}", b.stderr);
     assert_eq!(rec.entity("metrics/velocity/improved").rows, blocks);
     assert_eq!(rec.entity("metrics/power/paper").rows, blocks);
     // stick-slip: lanes and episode log
