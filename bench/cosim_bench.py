@@ -1,4 +1,5 @@
-"""Co-simulation throughput: lockstep against a bare zenoh ping-pong, with and without the bridge.
+"""Co-simulation throughput: lockstep against a bare zenoh ping-pong, with and without the bridge,
+with and without authentication.
 
 Usage: .venv/bin/python bench/cosim_bench.py [--cells 256] [--steps 20000] [--trials 3]
 
@@ -7,7 +8,9 @@ All in one run, interleaved trial by trial so that machine noise hits every colu
               blocking congestion control, callback into a channel), a State-sized message out and
               an Actuation-sized message back, over loopback TCP;
   lockstep    `crawler-plant run` + `crawler-controller run --policy wave` over loopback TCP;
-  + bridge    the same with `crawler-bridge record --every 1` attached (every state recorded).
+  + bridge    the same with `crawler-bridge record --every 1` attached (every state recorded);
+  no auth     lockstep with `--no-auth` on both processes: no zenoh password, no message seals
+              (every other column is authenticated, the default).
 Rates are the plant's own count (`lockstep: N steps in S s`, printed after the run). The table
 gives medians over the trials, the ratios, and the recording's bytes per recorded step against
 the raw field data (u and v as f64, 16 N bytes).
@@ -65,12 +68,12 @@ def pingpong(size, seconds):
         pong.wait()
 
 
-def lockstep(cells, steps, bridge, work):
+def lockstep(cells, steps, bridge, work, auth=True):
     """Returns (steps per second, bytes per state, rrd bytes, recorded steps)."""
     run = f"bench{os.getpid()}{int(time.time() * 1000) % 100000}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     t_end = steps * 1e-3
-    net = ["--run-id", run, "--endpoint", ep]
+    net = ["--run-id", run, "--endpoint", ep] + ([] if auth else ["--no-auth"])
     perr = os.path.join(work, f"{run}-plant.err")
     berr = os.path.join(work, f"{run}-bridge.err")
     rrd = os.path.join(work, f"{run}.rrd")
@@ -123,18 +126,21 @@ def main():
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
                     "-p", "crawler-bridge", "-p", "crawler-transport", "--bins", "--examples"],
                    check=True, cwd=ROOT)
-    pp, bare, withb, sizes = [], [], [], []
+    pp, bare, withb, noauth, sizes = [], [], [], [], []
     with tempfile.TemporaryDirectory() as work:
         _, state_bytes, _, _ = lockstep(a.cells, 6000, False, work)  # warm-up; learns the state size
         for t in range(a.trials):
             pp.append(pingpong(state_bytes, a.seconds))
-            bare.append(lockstep(a.cells, a.steps, False, work)[0])
+            # with and without authentication back to back, in alternating order
+            for auth in (True, False) if t % 2 == 0 else (False, True):
+                (bare if auth else noauth).append(lockstep(a.cells, a.steps, False, work, auth=auth)[0])
             rate, _, size, recorded = lockstep(a.cells, a.steps, True, work)
             withb.append(rate)
             sizes.append(size / recorded)
             print(f"trial {t + 1}: ping-pong {pp[-1]:.0f}/s, lockstep {bare[-1]:.0f}/s, "
-                  f"with bridge {withb[-1]:.0f}/s, {sizes[-1]:.0f} B per recorded step", file=sys.stderr)
-    mp, mb, mw, ms = (statistics.median(x) for x in (pp, bare, withb, sizes))
+                  f"with bridge {withb[-1]:.0f}/s, {sizes[-1]:.0f} B per recorded step, "
+                  f"lockstep without authentication {noauth[-1]:.0f}/s", file=sys.stderr)
+    mp, mb, mw, mn, ms = (statistics.median(x) for x in (pp, bare, withb, noauth, sizes))
     raw = 16 * a.cells
     print(f"N = {a.cells}, {a.steps} steps per run, State message {state_bytes} B, "
           f"Actuation {ACTUATION_BYTES} B, medians of {a.trials} trials, loopback TCP")
@@ -144,6 +150,8 @@ def main():
     print(f"| bare zenoh ping-pong, same payloads | {mp:.0f} | 1.00 |")
     print(f"| lockstep plant + controller | {mb:.0f} | {mb / mp:.2f} of ping-pong |")
     print(f"| lockstep + bridge recording every step | {mw:.0f} | {mw / mb:.2f} of lockstep |")
+    print(f"| lockstep without authentication (--no-auth) | {mn:.0f} | "
+          f"authenticated lockstep is {mb / mn:.3f} of it |")
     print()
     print(f"recording: {ms:.0f} B per recorded step; raw u, v fields 16 N = {raw} B; ratio {ms / raw:.2f}")
 

@@ -12,7 +12,16 @@ use zenoh::Wait;
 
 use crawler_bridge::{Incoming, Recorder, RecorderOptions};
 use crawler_cli::Exit;
-use crawler_protocol::{decode, ModelInfo, Role, RunKeys};
+use crawler_protocol::{decode, ModelInfo, Role, RunKeys, RunLimits};
+use crawler_transport::budget::{ByteBudget, Charged};
+use crawler_transport::gate::{Gate, Refused};
+use crawler_transport::{Credential, Network, Seal};
+
+/// Byte budget of the states in the inbox between the zenoh callbacks and the writer.
+const STATE_BYTES: usize = 48 << 20;
+/// Byte budget of everything else in it (events, metrics, predictions, statuses): its own, so a
+/// backlog of states never crowds them out.
+const OTHER_BYTES: usize = 8 << 20;
 
 #[derive(Parser)]
 #[command(
@@ -85,26 +94,188 @@ fn main() -> ExitCode {
     }
 }
 
+/// Where the callbacks put what passed the gates.
+#[derive(Clone)]
+struct Sink {
+    tx: Sender<Charged<Incoming>>,
+    states: ByteBudget,
+    others: ByteBudget,
+    dropped: Arc<AtomicU64>,
+}
+
 fn subscribe(
     session: &zenoh::Session,
     key: String,
-    tx: Sender<Incoming>,
-    dropped: Arc<AtomicU64>,
+    gate: Gate,
+    sink: Sink,
     wrap: fn(Vec<u8>) -> Incoming,
 ) -> anyhow::Result<zenoh::pubsub::Subscriber<()>> {
     session
         .declare_subscriber(key)
         .callback(move |sample| {
-            // Never block the publisher: if the writer is behind, drop and count.
-            if tx
-                .try_send(wrap(sample.payload().to_bytes().into_owned()))
-                .is_err()
-            {
-                dropped.fetch_add(1, Ordering::Relaxed);
+            // Oversized and unsealed payloads are counted by the gate. Never block the
+            // publisher: if the writer is behind (inbox full in messages or bytes), drop and count.
+            let Ok(bytes) = gate.admit(&sample) else {
+                return;
+            };
+            let len = bytes.len();
+            let msg = wrap(bytes);
+            let budget = match msg {
+                Incoming::State(_) => &sink.states,
+                _ => &sink.others,
+            };
+            let queued = budget
+                .charge(msg, len)
+                .is_some_and(|m| sink.tx.try_send(m).is_ok());
+            if !queued {
+                sink.dropped.fetch_add(1, Ordering::Relaxed);
             }
         })
         .wait()
         .map_err(|e| anyhow::anyhow!("zenoh: {e}"))
+}
+
+/// The recorder's session and its subscriptions.
+struct Connection {
+    session: zenoh::Session,
+    _subs: Vec<zenoh::pubsub::Subscriber<()>>,
+    _plants: zenoh::pubsub::Subscriber<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+    /// The gate of the state key (its limit is tightened once the run's size is known).
+    state_gate: Gate,
+    seal: Option<Seal>,
+    limit: usize,
+}
+
+impl Connection {
+    /// Connects to the plant (waiting for it until `give_up`), reassembling at most `limit`
+    /// bytes, subscribed to every key of the run.
+    fn open(
+        network: &Network,
+        credential: &mut Option<Credential>,
+        limit: usize,
+        (sink, refused): (&Sink, &Arc<Refused>),
+        (plant_tx, id): (Sender<Incoming>, &str),
+        give_up: &mut dyn FnMut() -> bool,
+    ) -> anyhow::Result<Option<Self>> {
+        let keys = RunKeys::new(&network.run_id)?;
+        let Some((session, used)) = crawler_transport::connect_client(
+            Role::Bridge,
+            network,
+            credential.clone(),
+            limit,
+            give_up,
+        )?
+        else {
+            return Ok(None);
+        };
+        *credential = used;
+        let seal = credential.as_ref().map(|c| Seal::new(&c.message_key()));
+        let gate = |limit: usize| Gate::new(limit, seal.clone(), refused.clone());
+        let state_gate = gate(limit);
+        let subs = vec![
+            subscribe(
+                &session,
+                keys.state(),
+                state_gate.clone(),
+                sink.clone(),
+                Incoming::State,
+            )?,
+            subscribe(
+                &session,
+                keys.events(),
+                gate(limit),
+                sink.clone(),
+                Incoming::Events,
+            )?,
+            subscribe(
+                &session,
+                keys.metrics(),
+                gate(RunLimits::metrics()),
+                sink.clone(),
+                Incoming::Metrics,
+            )?,
+            subscribe(
+                &session,
+                keys.prediction(),
+                gate(RunLimits::text_message()),
+                sink.clone(),
+                Incoming::Prediction,
+            )?,
+            subscribe(
+                &session,
+                keys.status_all(),
+                gate(RunLimits::text_message()),
+                sink.clone(),
+                Incoming::Status,
+            )?,
+        ];
+        // Plant liveliness goes through its own unbounded channel: it must never be dropped.
+        let plant_keys = keys.clone();
+        let plants = session
+            .liveliness()
+            .declare_subscriber(keys.alive_all(Role::Plant))
+            .history(true)
+            .callback(move |sample| {
+                if sample.kind() == zenoh::sample::SampleKind::Put {
+                    if let Some(pid) =
+                        plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
+                    {
+                        let _ = plant_tx.send(Incoming::PlantUp(pid.to_string()));
+                    }
+                }
+            })
+            .wait()
+            .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+        let token = session
+            .liveliness()
+            .declare_token(keys.alive(Role::Bridge, id))
+            .wait()
+            .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+        Ok(Some(Self {
+            session,
+            _subs: subs,
+            _plants: plants,
+            _token: token,
+            state_gate,
+            seal,
+            limit,
+        }))
+    }
+
+    /// The plant's model description, if it answers (sealed) within 200 ms.
+    fn query_model(&self, keys: &RunKeys, refused: &Arc<Refused>) -> Option<ModelInfo> {
+        let replies = self
+            .session
+            .get(keys.model())
+            .timeout(Duration::from_millis(200))
+            .wait()
+            .ok()?;
+        let gate = Gate::new(
+            RunLimits::before_model(),
+            self.seal.clone(),
+            refused.clone(),
+        );
+        let mut found = None;
+        while let Ok(reply) = replies.recv() {
+            if let Ok(sample) = reply.result() {
+                if let Ok(bytes) = gate.admit(sample) {
+                    if let Ok(info) = decode::<ModelInfo>(&bytes) {
+                        if info.run == keys.run() {
+                            found = Some(info);
+                        }
+                    }
+                }
+            }
+        }
+        found
+    }
+
+    fn close(self) {
+        let Self { session, _subs, .. } = self;
+        drop(_subs);
+        let _ = session.close().wait();
+    }
 }
 
 fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
@@ -150,75 +321,54 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         let _ = stop_tx.try_send(());
     })?;
 
-    let session = crawler_transport::open(Role::Bridge, &network)?;
-    let (tx, rx) = bounded::<Incoming>(a.inbox);
+    let interrupted = || !stop_rx.is_empty();
+    let credential = network.wait_for_credential(
+        "crawler-bridge",
+        Duration::from_secs_f64(a.idle_timeout.unwrap_or(86_400.0)),
+        &interrupted,
+    )?;
+    if credential.is_none() {
+        eprintln!("crawler-bridge: warning: unauthenticated (--no-auth): the recording cannot tell the run's messages from anyone else's");
+    }
+    let (tx, rx) = bounded::<Charged<Incoming>>(a.inbox);
     let dropped = Arc::new(AtomicU64::new(0));
-    let _subs = [
-        subscribe(
-            &session,
-            keys.state(),
-            tx.clone(),
-            dropped.clone(),
-            Incoming::State,
-        )?,
-        subscribe(
-            &session,
-            keys.events(),
-            tx.clone(),
-            dropped.clone(),
-            Incoming::Events,
-        )?,
-        subscribe(
-            &session,
-            keys.metrics(),
-            tx.clone(),
-            dropped.clone(),
-            Incoming::Metrics,
-        )?,
-        subscribe(
-            &session,
-            keys.prediction(),
-            tx.clone(),
-            dropped.clone(),
-            Incoming::Prediction,
-        )?,
-        subscribe(
-            &session,
-            keys.status_all(),
-            tx,
-            dropped.clone(),
-            Incoming::Status,
-        )?,
-    ];
-    // Plant liveliness goes through its own unbounded channel: it must never be dropped.
+    let sink = Sink {
+        tx,
+        states: ByteBudget::new(STATE_BYTES),
+        others: ByteBudget::new(OTHER_BYTES),
+        dropped: dropped.clone(),
+    };
+    let refused = Arc::new(Refused::default());
     let (plant_tx, plant_rx) = crossbeam_channel::unbounded::<Incoming>();
-    let plant_keys = keys.clone();
-    let _plants = session
-        .liveliness()
-        .declare_subscriber(keys.alive_all(Role::Plant))
-        .history(true)
-        .callback(move |sample| {
-            if sample.kind() == zenoh::sample::SampleKind::Put {
-                if let Some(pid) =
-                    plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
-                {
-                    let _ = plant_tx.send(Incoming::PlantUp(pid.to_string()));
-                }
-            }
-        })
-        .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
     let id = crawler_transport::process_id();
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive(Role::Bridge, &id))
-        .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
     eprintln!(
-        "crawler-bridge: recording {} into {}",
+        "crawler-bridge: recording {} into {} (waiting for the plant)",
         network.describe(),
         a.out.display()
     );
+    let mut credential = credential;
+    let started = Instant::now();
+    let idle_timeout = a.idle_timeout;
+    let mut give_up =
+        || !stop_rx.is_empty() || idle_timeout.is_some_and(|t| started.elapsed().as_secs_f64() > t);
+    let Some(mut conn) = Connection::open(
+        &network,
+        &mut credential,
+        RunLimits::before_model(),
+        (&sink, &refused),
+        (plant_tx.clone(), &id),
+        &mut give_up,
+    )?
+    else {
+        recorder.finish()?;
+        eprintln!("crawler-bridge: no plant; recording closed");
+        return Ok(if stop_rx.is_empty() {
+            Exit::Timeout
+        } else {
+            Exit::Interrupted
+        }
+        .into());
+    };
 
     let mut model_known = false;
     let mut next_query = Instant::now();
@@ -233,6 +383,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
             },
             recv(rx) -> msg => {
                 if let Ok(msg) = msg {
+                    let (msg, _charge) = msg.split();
                     recorder.handle(msg)?;
                     last_message = Instant::now();
                 }
@@ -244,27 +395,41 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         if recorder.finished() && rx.is_empty() {
             break false;
         }
+        recorder.refused_at_arrival(refused.oversize(), refused.unsealed());
         if !model_known && Instant::now() >= next_query {
             next_query = Instant::now() + Duration::from_millis(200);
-            if let Ok(replies) = session
-                .get(keys.model())
-                .timeout(Duration::from_millis(200))
-                .wait()
-            {
-                while let Ok(reply) = replies.recv() {
-                    if let Ok(sample) = reply.result() {
-                        if let Ok(info) = decode::<ModelInfo>(&sample.payload().to_bytes()) {
-                            recorder.set_model(&info)?;
-                            model_known = true;
-                            // Our subscriptions reached the plant before this reply did (same link,
-                            // in order): from here on nothing the plant publishes is missed.
-                            eprintln!(
-                                "crawler-bridge: plant found ({} cells, last step {}); recording every state from now on",
-                                info.cells, info.last_step
-                            );
+            if let Some(info) = conn.query_model(&keys, &refused) {
+                let limits = RunLimits::new(info.cells as usize);
+                if limits.largest() > conn.limit {
+                    // a very large grid: reconnect able to reassemble its largest messages
+                    conn.close();
+                    let mut give_up = || !stop_rx.is_empty();
+                    match Connection::open(
+                        &network,
+                        &mut credential,
+                        limits.largest(),
+                        (&sink, &refused),
+                        (plant_tx.clone(), &id),
+                        &mut give_up,
+                    )? {
+                        Some(c) => conn = c,
+                        None => {
+                            recorder.finish()?;
+                            eprintln!("crawler-bridge: interrupted; recording closed properly");
+                            return Ok(Exit::Interrupted.into());
                         }
                     }
+                    continue;
                 }
+                conn.state_gate.set_limit(limits.state());
+                recorder.set_model(&info)?;
+                model_known = true;
+                // Our subscriptions reached the plant before this reply did (same link,
+                // in order): from here on nothing the plant publishes is missed.
+                eprintln!(
+                    "crawler-bridge: plant found ({} cells, last step {}); recording every state from now on",
+                    info.cells, info.last_step
+                );
             }
         }
         if let Some(t) = a.idle_timeout {
@@ -277,12 +442,13 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     };
     // Drain what already arrived, then finish the file properly.
     while let Ok(msg) = rx.try_recv() {
-        recorder.handle(msg)?;
+        recorder.handle(msg.split().0)?;
     }
+    recorder.refused_at_arrival(refused.oversize(), refused.unsealed());
     recorder.finish()?;
     let c = recorder.counts();
     eprintln!(
-        "crawler-bridge: {} {}: {} states ({} with fields), {} metric blocks, {} episodes, {} rejected, {} dropped",
+        "crawler-bridge: {} {}: {} states ({} with fields), {} metric blocks, {} episodes, {} rejected ({} invalid), {} refused at arrival, {} dropped",
         if interrupted { "interrupted; recording closed properly" } else { "run finished; recording closed" },
         a.out.display(),
         c.states,
@@ -290,9 +456,10 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         c.metric_blocks,
         c.episodes,
         c.rejected,
+        c.invalid,
+        c.refused,
         c.dropped
     );
-    drop(_subs);
-    let _ = session.close().wait();
+    conn.close();
     Ok(Exit::Finished.into())
 }

@@ -10,7 +10,12 @@ use crawler_protocol::{
     decode, Events, Metrics, ModelPrediction, Prediction, Series, State, Status,
 };
 
+use crate::checks::{self, RunFacts};
 use crate::paths;
+
+/// Messages held back until the plant's model description arrives (they cannot be checked
+/// before); beyond this many they are rejected.
+const EARLY_MAX: usize = 1024;
 
 /// What the zenoh callbacks hand to the writer (raw payloads: decoding happens on the writer).
 #[derive(Debug, Clone)]
@@ -66,8 +71,14 @@ pub struct Counts {
     pub episodes: u64,
     /// Metric blocks logged.
     pub metric_blocks: u64,
-    /// Messages that failed to decode (never recorded).
+    /// Messages not recorded because they failed to decode or failed a check (never recorded).
     pub rejected: u64,
+    /// Of `rejected`: messages that decoded but that the run cannot have produced
+    /// ([`crate::checks`]).
+    pub invalid: u64,
+    /// Payloads refused at arrival, before decoding: larger than the run's largest legal
+    /// message, or (authenticated runs) without a valid seal.
+    pub refused: u64,
     /// Messages the callbacks dropped because the writer was behind.
     pub dropped: u64,
 }
@@ -98,7 +109,19 @@ pub struct Recorder {
     last_step_time: (u64, f64),
     run_last_step: Option<u64>,
     last_state_at: Option<Instant>,
+    facts: Option<RunFacts>,
+    early: Vec<Incoming>,
+    controller_id: Option<String>,
+    invalid_by_kind: BTreeMap<&'static str, u64>,
+    /// Step of the plant's last state (last: true), once it came: the run's last step.
+    plant_last_state: Option<u64>,
+    /// The plant's `finished` statuses for a step before the model's last that came before any
+    /// last state (a task-mode run the plant ended early), by step; a few at most.
+    held_finished: BTreeMap<u64, Status>,
 }
+
+/// Most `finished` statuses held while the plant's last state is awaited.
+const HELD_FINISHED_MAX: usize = 8;
 
 /// A recording written to `path`, with the default layout.
 ///
@@ -151,6 +174,12 @@ impl Recorder {
             last_step_time: (0, 0.0),
             run_last_step: None,
             last_state_at: None,
+            facts: None,
+            early: Vec::new(),
+            controller_id: None,
+            invalid_by_kind: BTreeMap::new(),
+            plant_last_state: None,
+            held_finished: BTreeMap::new(),
         };
         me.log_static()?;
         Ok(me)
@@ -178,6 +207,7 @@ impl Recorder {
             self.length = info.length;
         }
         self.run_last_step = Some(info.last_step);
+        self.facts = Some(RunFacts::of(info));
         let end = info.start_time + info.last_step as f64 * info.step;
         self.set_time(info.last_step, end);
         self.rec.log(
@@ -188,7 +218,54 @@ impl Recorder {
             ))
             .with_level(rerun::TextLogLevel::INFO),
         )?;
+        // what arrived before can be checked now
+        for msg in std::mem::take(&mut self.early) {
+            self.handle(msg)?;
+        }
         Ok(())
+    }
+
+    /// Counts a decoded message that fails a check, and notes it in the recording (the first
+    /// five of each kind, then every 1000th).
+    fn invalid(&mut self, kind: &'static str, reason: &str) {
+        self.counts.rejected += 1;
+        self.counts.invalid += 1;
+        let n = self.invalid_by_kind.entry(kind).or_insert(0);
+        *n += 1;
+        let n = *n;
+        if n <= 5 || n.is_multiple_of(1000) {
+            let text = format!("rejected {kind} #{n} (not recorded): {reason}");
+            eprintln!("crawler-bridge: {text}");
+            self.note(text, rerun::TextLogLevel::WARN);
+        }
+    }
+
+    /// Holds a message until the model description arrives (or rejects it if too many wait).
+    fn hold(&mut self, msg: Incoming) {
+        if self.early.len() < EARLY_MAX {
+            self.early.push(msg);
+        } else {
+            self.invalid(
+                "message",
+                "arrived before the plant's model description, with too many others",
+            );
+        }
+    }
+
+    /// Records that `refused` payloads in all were refused at arrival so far (oversized or
+    /// unsealed), noting each increase in the recording (at most about once a second, as the
+    /// writer's loop calls it).
+    pub fn refused_at_arrival(&mut self, oversize: u64, unsealed: u64) {
+        let total = oversize + unsealed;
+        if total > self.counts.refused {
+            self.note(
+                format!(
+                    "{total} payloads refused at arrival so far (not recorded): {oversize} larger than the run's largest legal message, {unsealed} without a valid seal of this run"
+                ),
+                rerun::TextLogLevel::WARN,
+            );
+            self.counts.refused = total;
+        }
     }
 
     /// Current decimation.
@@ -249,15 +326,25 @@ impl Recorder {
         );
     }
 
-    /// Handles one message. Never fails on bad input: undecodable messages are counted.
+    /// Handles one message. Never fails on bad input: undecodable messages and messages the run
+    /// cannot have produced are counted and noted, never recorded. Events, metrics and
+    /// predictions that arrive before the plant's model description wait for it.
     pub fn handle(&mut self, msg: Incoming) -> anyhow::Result<()> {
+        let facts = self.facts;
         match msg {
             Incoming::State(b) => match decode::<State>(&b) {
-                Ok(s) if self.run_last_step.is_some_and(|last| s.step > last) => {
-                    // beyond the end of the run: not from this run's plant
-                    self.counts.rejected += 1;
-                }
                 Ok(s) => {
+                    if let Some(f) = &facts {
+                        if let Err(reason) = checks::state(&s, f) {
+                            self.invalid("state", &reason);
+                            return Ok(());
+                        }
+                    }
+                    if !s.controller.is_empty() {
+                        self.controller_id
+                            .get_or_insert_with(|| s.controller.clone());
+                    }
+                    let last = (s.last && self.plant_last_state.is_none()).then_some(s.step);
                     self.counts.states += 1;
                     if self.pending.contains_key(&s.step)
                         || self.next_step.is_some_and(|n| s.step < n)
@@ -267,20 +354,41 @@ impl Recorder {
                         self.pending.insert(s.step, s);
                     }
                     self.drain(false)?;
+                    if let Some(step) = last {
+                        // the run's last step: a finished status held for it is the plant's
+                        self.plant_last_state = Some(step);
+                        if let Some(st) = self.held_finished.remove(&step) {
+                            self.log_status(&st)?;
+                        }
+                    }
                 }
                 Err(_) => self.counts.rejected += 1,
             },
-            Incoming::Events(b) => match decode::<Events>(&b) {
-                Ok(e) => self.log_events(&e)?,
-                Err(_) => self.counts.rejected += 1,
+            Incoming::Events(ref b) => match (decode::<Events>(b), &facts) {
+                (Ok(_), None) => self.hold(msg),
+                (Ok(e), Some(f)) => match checks::events(&e, f) {
+                    Ok(()) => self.log_events(&e)?,
+                    Err(reason) => self.invalid("events", &reason),
+                },
+                (Err(_), _) => self.counts.rejected += 1,
             },
-            Incoming::Metrics(b) => match decode::<Metrics>(&b) {
-                Ok(m) => self.log_metrics(&m)?,
-                Err(_) => self.counts.rejected += 1,
+            Incoming::Metrics(ref b) => match (decode::<Metrics>(b), &facts) {
+                (Ok(_), None) => self.hold(msg),
+                (Ok(m), Some(f)) => match checks::metrics(&m, f) {
+                    Ok(()) => self.log_metrics(&m)?,
+                    Err(reason) => self.invalid("metrics", &reason),
+                },
+                (Err(_), _) => self.counts.rejected += 1,
             },
-            Incoming::Prediction(b) => match decode::<Prediction>(&b) {
-                Ok(p) => self.set_prediction(p),
-                Err(_) => self.counts.rejected += 1,
+            Incoming::Prediction(ref b) => match (decode::<Prediction>(b), &facts) {
+                (Ok(_), None) => self.hold(msg),
+                (Ok(p), Some(f)) => {
+                    match checks::prediction(&p, f, self.controller_id.as_deref()) {
+                        Ok(()) => self.set_prediction(p),
+                        Err(reason) => self.invalid("prediction", &reason),
+                    }
+                }
+                (Err(_), _) => self.counts.rejected += 1,
             },
             Incoming::Status(b) => match decode::<Status>(&b) {
                 Ok(s) => self.log_status(&s)?,
@@ -348,6 +456,33 @@ impl Recorder {
     /// Records every pending state (end of run or shutdown) and flushes.
     pub fn finish(&mut self) -> anyhow::Result<()> {
         self.drain(true)?;
+        // finished statuses no last state of the plant confirmed: not the plant's end
+        for (step, _) in std::mem::take(&mut self.held_finished) {
+            let why = match self.plant_last_state {
+                Some(l) => {
+                    format!("status finished at step {step}: the plant's last state was step {l}")
+                }
+                None => format!(
+                    "status finished at step {step}: no last state of the plant came for it"
+                ),
+            };
+            self.invalid("status", &why);
+        }
+        if !self.invalid_by_kind.is_empty() {
+            let kinds: Vec<String> = self
+                .invalid_by_kind
+                .iter()
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            self.note(
+                format!(
+                    "{} messages rejected in all, not recorded: the run cannot have produced them ({})",
+                    self.counts.invalid,
+                    kinds.join(", ")
+                ),
+                rerun::TextLogLevel::WARN,
+            );
+        }
         if self.heat_rows > 0 {
             self.log_heat_block()?;
         }
@@ -620,6 +755,34 @@ impl Recorder {
     }
 
     fn log_status(&mut self, s: &Status) -> anyhow::Result<()> {
+        // Only the plant whose liveliness token we saw speaks for the plant, and only what fits
+        // the run.
+        let from_plant = s.role == "plant" && self.plant_id.as_deref() == Some(s.id.as_str());
+        if s.role == "plant" && !from_plant {
+            self.invalid(
+                "status",
+                &format!("a plant status from {:?}, not from the run's plant", s.id),
+            );
+            return Ok(());
+        }
+        if from_plant {
+            if let Some(f) = self.facts {
+                if let Err(reason) = checks::terminal(s, &f, self.plant_last_state) {
+                    let early = s.state == "finished"
+                        && self.plant_last_state.is_none()
+                        && s.step < f.last_step;
+                    if early && self.held_finished.len() < HELD_FINISHED_MAX {
+                        // a task-mode run may end early: its last state may be on its way
+                        self.held_finished
+                            .entry(s.step)
+                            .or_insert_with(|| s.clone());
+                    } else {
+                        self.invalid("status", &reason);
+                    }
+                    return Ok(());
+                }
+            }
+        }
         let level = match s.state.as_str() {
             "failed" => rerun::TextLogLevel::ERROR,
             "stopped" => rerun::TextLogLevel::WARN,
@@ -633,12 +796,6 @@ impl Recorder {
             ))
             .with_level(level),
         )?;
-        // Only the plant whose liveliness token we saw ends the recording.
-        let from_plant = s.role == "plant" && self.plant_id.as_deref() == Some(s.id.as_str());
-        if s.role == "plant" && !from_plant {
-            self.counts.rejected += 1;
-            return Ok(());
-        }
         if from_plant && s.state == "finished" {
             if let Some(summary) = &s.summary {
                 self.log_summary(summary)?;

@@ -5,9 +5,12 @@
 //! (which is how it joins the run) and then answers every `State(n)` with `Actuation(n)`. It also
 //! publishes the models' predictions for the wave it applies, for the recorder.
 
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{bounded, unbounded, Receiver};
+use std::sync::Arc;
+
+use crossbeam_channel::{unbounded, Receiver};
 use serde::Serialize;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
@@ -19,10 +22,16 @@ use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
 use crawler_protocol::{
     decode, encode, Actuation as ActuationMsg, ModelInfo, ModelPrediction,
-    Prediction as PredictionMsg, Rejections, Role, RunKeys, Series, State, Status, WaveMsg,
-    PROTOCOL_VERSION,
+    Prediction as PredictionMsg, Rejections, Role, RunKeys, RunLimits, Series, State, Status,
+    WaveMsg, PROTOCOL_VERSION,
 };
-use crawler_transport::Network;
+use crawler_transport::budget::{ByteBudget, Charged};
+use crawler_transport::gate::{self, Gate, Refused};
+use crawler_transport::{Credential, Network, Seal};
+
+/// The smallest byte budget of the state inbox (states and the plant's statuses): a plant has
+/// one state in flight; this holds eight of a 36 000-cell run's.
+pub const STATE_INBOX_BYTES: usize = 8 << 20;
 
 use crate::controller::{Actuation, Context, FeedbackOptions, Insight, Observation, PolicyOptions};
 use crate::operating_point::OperatingPoint;
@@ -288,45 +297,265 @@ fn insight_prediction(i: &Insight) -> ModelPrediction {
     m
 }
 
+/// The plant's liveliness (never dropped).
 enum Event {
     Up(String),
     Down(String),
-    Status(Status),
+}
+
+/// The controller's session and what it checks arriving messages with.
+struct Link {
+    session: zenoh::Session,
+    credential: Option<Credential>,
+    seal: Option<Seal>,
+    limit: usize,
+}
+
+impl Link {
+    /// Connects to the plant presenting `credential`'s password (if any), reassembling messages
+    /// of at most `limit` bytes; `None` if `give_up` says so first.
+    fn connect(
+        network: &crawler_transport::Network,
+        credential: Option<Credential>,
+        limit: usize,
+        give_up: &mut dyn FnMut() -> bool,
+    ) -> anyhow::Result<Option<Self>> {
+        let Some((session, credential)) = crawler_transport::connect_client(
+            Role::Controller,
+            network,
+            credential,
+            limit,
+            give_up,
+        )?
+        else {
+            return Ok(None);
+        };
+        let seal = credential.as_ref().map(|c| Seal::new(&c.message_key()));
+        Ok(Some(Self {
+            session,
+            credential,
+            seal,
+            limit,
+        }))
+    }
+
+    fn close(self) {
+        let _ = self.session.close().wait();
+    }
 }
 
 /// Runs the controller until the run ends.
 pub fn run(opts: ClientOptions, interrupt: Receiver<Interrupt>) -> anyhow::Result<ClientOutcome> {
     let keys = RunKeys::new(&opts.network.run_id)?;
     let id = crawler_transport::process_id();
-    let session = crawler_transport::open(Role::Controller, &opts.network)?;
-    let outcome = serve(&session, &keys, &id, &opts, &interrupt);
-    let _ = session.close().wait();
+    let deadline = Instant::now() + opts.wait_timeout;
+    let credential =
+        opts.network
+            .wait_for_credential("crawler-controller", opts.wait_timeout, &|| {
+                !interrupt.is_empty()
+            })?;
+    if credential.is_none() {
+        eprintln!(
+            "crawler-controller: warning: unauthenticated (--no-auth): this controller cannot tell its plant's messages from anyone else's"
+        );
+    }
+    eprintln!(
+        "crawler-controller: waiting for the plant of {} (start it with: crawler-plant run --run-id {})",
+        opts.network.describe(),
+        keys.run()
+    );
+    let (intr, wait_timeout) = (&interrupt, opts.wait_timeout);
+    let waited = |deadline: Instant| {
+        move || -> Option<ClientOutcome> {
+            if !intr.is_empty() {
+                return Some(ClientOutcome::Ended {
+                    reason: "interrupted while waiting for the plant".into(),
+                    exit: Exit::Interrupted,
+                });
+            }
+            (Instant::now() >= deadline).then(|| ClientOutcome::Ended {
+                reason: format!(
+                    "no plant answered within {:.0} s",
+                    wait_timeout.as_secs_f64()
+                ),
+                exit: Exit::Timeout,
+            })
+        }
+    };
+    let give_up = waited(deadline);
+    let mut ended = None;
+    let link = Link::connect(
+        &opts.network,
+        credential,
+        RunLimits::before_model(),
+        &mut || {
+            ended = give_up();
+            ended.is_some()
+        },
+    )?;
+    let Some(link) = link else {
+        return Ok(ended.expect("gave up for a reason"));
+    };
+    let info = match discover(&link, &keys, &id, &waited(deadline))? {
+        Ok(info) => info,
+        Err(ended) => {
+            link.close();
+            return Ok(ended);
+        }
+    };
+    // The run's largest legal message may exceed what the first session reassembles (very
+    // large grids): then reconnect with the run's own limit.
+    let limits = RunLimits::new(info.cells as usize);
+    let link = if limits.largest() > link.limit {
+        let credential = link.credential.clone();
+        link.close();
+        let give_up = waited(Instant::now() + opts.wait_timeout);
+        let mut ended = None;
+        match Link::connect(&opts.network, credential, limits.largest(), &mut || {
+            ended = give_up();
+            ended.is_some()
+        })? {
+            Some(link) => link,
+            None => return Ok(ended.expect("gave up for a reason")),
+        }
+    } else {
+        link
+    };
+    let outcome = serve(&link, &keys, &id, &opts, &interrupt, info);
+    link.close();
     outcome
 }
 
+/// Publishes the controller's status (sealed in an authenticated run).
+fn publish_status(
+    publisher: &zenoh::pubsub::Publisher<'_>,
+    seal: Option<&Seal>,
+    id: &str,
+    (state, message, step): (&str, &str, u64),
+) {
+    let s = Status {
+        v: PROTOCOL_VERSION,
+        role: Role::Controller.as_str().into(),
+        id: id.to_string(),
+        state: state.into(),
+        message: message.into(),
+        step,
+        rejected: Rejections::default(),
+        summary: None,
+    };
+    let _ = gate::put(publisher, seal, encode(&s));
+}
+
+/// Waits for the plant's (sealed) model description, retrying until it answers or `give_up`
+/// gives a reason to stop.
+fn discover(
+    link: &Link,
+    keys: &RunKeys,
+    id: &str,
+    give_up: &dyn Fn() -> Option<ClientOutcome>,
+) -> anyhow::Result<Result<ModelInfo, ClientOutcome>> {
+    let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
+    let status_pub = link
+        .session
+        .declare_publisher(keys.status(Role::Controller))
+        .wait()
+        .map_err(z)?;
+    publish_status(
+        &status_pub,
+        link.seal.as_ref(),
+        id,
+        ("waiting", "waiting for the plant's model description", 0),
+    );
+    let gate = Gate::new(
+        RunLimits::before_model(),
+        link.seal.clone(),
+        Arc::new(Refused::default()),
+    );
+    loop {
+        if let Some(ended) = give_up() {
+            return Ok(Err(ended));
+        }
+        let replies = link
+            .session
+            .get(keys.model())
+            .timeout(Duration::from_millis(500))
+            .wait()
+            .map_err(z)?;
+        let mut found = None;
+        while let Ok(reply) = replies.recv() {
+            let Ok(sample) = reply.result() else { continue };
+            let Ok(bytes) = gate.admit(sample) else {
+                eprintln!("crawler-controller: ignoring a model description without a valid seal");
+                continue;
+            };
+            match decode::<ModelInfo>(&bytes) {
+                Ok(info) if info.run == keys.run() => found = Some(info),
+                Ok(info) => eprintln!(
+                    "crawler-controller: ignoring the model description of another run ({})",
+                    info.run
+                ),
+                Err(e) => {
+                    eprintln!("crawler-controller: ignoring an invalid model description: {e}")
+                }
+            }
+        }
+        if let Some(info) = found {
+            return Ok(Ok(info));
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
 fn serve(
-    session: &zenoh::Session,
+    link: &Link,
     keys: &RunKeys,
     id: &str,
     opts: &ClientOptions,
     interrupt: &Receiver<Interrupt>,
+    info: ModelInfo,
 ) -> anyhow::Result<ClientOutcome> {
     let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
-    let (state_tx, state_rx) = bounded::<Vec<u8>>(1024);
+    let session = &link.session;
+    let seal = link.seal.as_ref();
+    let limits = RunLimits::new(info.cells as usize);
+    // What arrives is checked in the callbacks (size, seal) and queued within a byte budget.
+    let refused = Arc::new(Refused::default());
+    let budget = ByteBudget::new(STATE_INBOX_BYTES.max(8 * limits.state()));
+    let (state_tx, state_rx) = unbounded::<Charged<Vec<u8>>>();
+    let state_gate = Gate::new(limits.state(), link.seal.clone(), refused.clone());
+    let state_budget = budget.clone();
     let _states = session
         .declare_subscriber(keys.state())
         .callback(move |s| {
-            let _ = state_tx.try_send(s.payload().to_bytes().into_owned());
+            if let Ok(bytes) = state_gate.admit(&s) {
+                let len = bytes.len();
+                if let Some(charged) = state_budget.charge(bytes, len) {
+                    let _ = state_tx.send(charged);
+                }
+            }
         })
         .wait()
         .map_err(z)?;
     let (ev_tx, ev_rx) = unbounded::<Event>();
-    let ev2 = ev_tx.clone();
+    // Statuses are few (about one a second); a flood of them shares the states' byte budget.
+    let (status_tx, status_rx) = unbounded::<Charged<Status>>();
+    let status_gate = Gate::new(
+        RunLimits::text_message(),
+        link.seal.clone(),
+        refused.clone(),
+    );
+    let status_budget = budget.clone();
     let _status = session
         .declare_subscriber(keys.status(Role::Plant))
         .callback(move |s| {
-            if let Ok(st) = decode::<Status>(&s.payload().to_bytes()) {
-                let _ = ev2.send(Event::Status(st));
+            let Ok(bytes) = status_gate.admit(&s) else {
+                return;
+            };
+            let len = bytes.len();
+            if let Ok(st) = decode::<Status>(&bytes) {
+                if let Some(charged) = status_budget.charge(st, len) {
+                    let _ = status_tx.send(charged);
+                }
             }
         })
         .wait()
@@ -336,65 +565,9 @@ fn serve(
         .wait()
         .map_err(z)?;
     let publish_status = |state: &str, message: &str, step: u64| {
-        let s = Status {
-            v: PROTOCOL_VERSION,
-            role: Role::Controller.as_str().into(),
-            id: id.to_string(),
-            state: state.into(),
-            message: message.into(),
-            step,
-            rejected: Rejections::default(),
-            summary: None,
-        };
-        let _ = status_pub.put(encode(&s)).wait();
+        publish_status(&status_pub, seal, id, (state, message, step));
     };
 
-    // The plant's description; retried until the plant answers.
-    let what = format!(
-        "waiting for the plant of {} (start it with: crawler-plant run --run-id {})",
-        opts.network.describe(),
-        keys.run()
-    );
-    eprintln!("crawler-controller: {what}");
-    publish_status("waiting", &what, 0);
-    let deadline = Instant::now() + opts.wait_timeout;
-    let info = loop {
-        if interrupt.try_recv().is_ok() {
-            return Ok(ClientOutcome::Ended {
-                reason: "interrupted while waiting for the plant".into(),
-                exit: Exit::Interrupted,
-            });
-        }
-        if Instant::now() >= deadline {
-            return Ok(ClientOutcome::Ended {
-                reason: format!(
-                    "no plant answered within {:.0} s",
-                    opts.wait_timeout.as_secs_f64()
-                ),
-                exit: Exit::Timeout,
-            });
-        }
-        let replies = session
-            .get(keys.model())
-            .timeout(Duration::from_millis(500))
-            .wait()
-            .map_err(z)?;
-        let mut found = None;
-        while let Ok(reply) = replies.recv() {
-            if let Ok(sample) = reply.result() {
-                match decode::<ModelInfo>(&sample.payload().to_bytes()) {
-                    Ok(info) => found = Some(info),
-                    Err(e) => {
-                        eprintln!("crawler-controller: ignoring an invalid model description: {e}")
-                    }
-                }
-            }
-        }
-        match found {
-            Some(info) => break info,
-            None => std::thread::sleep(Duration::from_millis(200)),
-        }
-    };
     let ctx = context_of(
         &info,
         &opts.scenario,
@@ -444,6 +617,13 @@ fn serve(
     publish_status("running", &format!("policy {}", policy.name()), 0);
 
     let mut last_wave: Option<Wave> = None;
+    // The step of the plant's last state (last: true) to us: the run's last step, which is the
+    // model's `last_step` unless the plant ended the run early (task mode). Only at that step can
+    // the plant have finished; a `finished` status that overtakes the last state waits for it
+    // (a few at most, each dropped once the run goes on past its step).
+    let mut last_state_step: Option<u64> = None;
+    let mut latest_step: Option<u64> = None;
+    let mut pending_finished: BTreeMap<u64, Status> = BTreeMap::new();
     let mut last_predictions = Vec::new();
     let mut answered = 0u64;
     let plant_summary: Option<serde_json::Value>;
@@ -469,10 +649,36 @@ fn serve(
                 Ok(Event::Down(pid)) if plant_id.as_deref() == Some(pid.as_str()) => {
                     return Ok(ClientOutcome::Ended { reason: "the plant left the run".into(), exit: Exit::PeerLost });
                 }
-                Ok(Event::Status(st)) if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" => {
+                _ => {}
+            },
+            recv(status_rx) -> st => {
+                let Ok(st) = st else { continue };
+                let (st, _charge) = st.split();
+                if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" {
                     ignored += 1;
+                    continue;
                 }
-                Ok(Event::Status(st)) => match st.state.as_str() {
+                if st.state == "finished"
+                    && last_state_step.is_none()
+                    && finished_may_follow(&st, &info, latest_step)
+                {
+                    // the last state may still be on its way (another channel): wait for it
+                    if pending_finished.len() < PENDING_FINISHED_MAX {
+                        pending_finished.entry(st.step).or_insert(st);
+                    } else {
+                        ignored += 1;
+                    }
+                    continue;
+                }
+                if !terminal_is_consistent(&st, &info, last_state_step) {
+                    ignored += 1;
+                    eprintln!(
+                        "crawler-controller: ignoring an inconsistent plant status {:?} at step {} (the run ends at step {})",
+                        st.state, st.step, info.last_step
+                    );
+                    continue;
+                }
+                match st.state.as_str() {
                     "finished" => {
                         plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
                         break;
@@ -482,12 +688,11 @@ fn serve(
                         return Ok(ClientOutcome::Ended { reason: format!("the plant {}: {}", st.state, st.message), exit: Exit::Failure });
                     }
                     _ => {}
-                },
-                _ => {}
+                }
             },
             recv(state_rx) -> bytes => {
                 let Ok(bytes) = bytes else { continue };
-                let state: State = match decode(&bytes) {
+                let state: State = match decode(bytes.get()) {
                     Ok(s) => s,
                     Err(e) => {
                         ignored += 1;
@@ -510,7 +715,29 @@ fn serve(
                     continue;
                 }
                 if state.last {
+                    if last_state_step.is_none() && last_state_fits(state.step, &info, latest_step) {
+                        last_state_step = Some(state.step);
+                        if let Some(st) = pending_finished.remove(&state.step) {
+                            plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
+                            break;
+                        }
+                    } else {
+                        ignored += 1;
+                    }
                     continue; // the plant's finished status ends the run
+                }
+                latest_step = Some(state.step);
+                // a finished status for a step the run went on past was not the plant's
+                while let Some(entry) = pending_finished.first_entry() {
+                    if *entry.key() > state.step {
+                        break;
+                    }
+                    let st = entry.remove();
+                    ignored += 1;
+                    eprintln!(
+                        "crawler-controller: ignoring an inconsistent plant status \"finished\" at step {} (the run went on to step {})",
+                        st.step, state.step
+                    );
                 }
                 let obs = Observation {
                     step: state.step,
@@ -557,10 +784,10 @@ fn serve(
                     wave: wave.map(|w| WaveMsg { f0: w.f0, k: w.k, omega: w.omega, phase: w.phase }),
                     field,
                 };
-                actuation_pub.put(encode(&msg)).wait().map_err(z)?;
+                gate::put(&actuation_pub, seal, encode(&msg)).map_err(z)?;
                 answered += 1;
                 if let Some(p) = prediction {
-                    let _ = prediction_pub.put(encode(&p)).wait();
+                    let _ = gate::put(&prediction_pub, seal, encode(&p));
                 }
             },
             default(Duration::from_millis(500)) => {
@@ -575,8 +802,15 @@ fn serve(
         }
     }
     publish_status("finished", &format!("answered {answered} steps"), answered);
-    if ignored > 0 {
-        eprintln!("crawler-controller: ignored {ignored} messages (invalid, or not from this run's plant)");
+    let refused_total = refused.oversize() + refused.unsealed() + budget.overflow();
+    if ignored > 0 || refused_total > 0 {
+        eprintln!(
+            "crawler-controller: ignored {ignored} messages (invalid, or not from this run's plant); refused at arrival: {} oversized, {} without a valid seal, {} beyond the inbox's {} bytes",
+            refused.oversize(),
+            refused.unsealed(),
+            budget.overflow(),
+            budget.cap()
+        );
     }
     Ok(ClientOutcome::Finished(Box::new(FinalSummary {
         policy: policy.name().to_string(),
@@ -590,4 +824,167 @@ fn serve(
         predictions: last_predictions,
         steps: answered,
     })))
+}
+
+/// Most `finished` statuses held while the plant's last state is awaited.
+const PENDING_FINISHED_MAX: usize = 8;
+
+/// Whether a plant status can be what it says: `finished` only at the step of the plant's last
+/// state to this controller (`last_state_step`: the model's last step, or an earlier one where
+/// the plant decided its task and ended the run), `failed` and `stopped` only within the run's
+/// steps. Non-terminal states are always consistent.
+pub fn terminal_is_consistent(st: &Status, info: &ModelInfo, last_state_step: Option<u64>) -> bool {
+    match st.state.as_str() {
+        "finished" => st.step <= info.last_step && last_state_step == Some(st.step),
+        "failed" | "stopped" => st.step <= info.last_step,
+        _ => true,
+    }
+}
+
+/// Whether a `finished` status that arrives before the plant's last state can still turn out
+/// consistent: its step is within the run and after the latest state this controller answered.
+pub fn finished_may_follow(st: &Status, info: &ModelInfo, latest_step: Option<u64>) -> bool {
+    st.step <= info.last_step && latest_step.is_none_or(|l| st.step > l)
+}
+
+/// Whether a state marked `last` at `step` can be the plant's last: within the run, and either
+/// the model's last step or the step right after the latest state this controller answered (the
+/// plant ends a task-mode run early, at the step that decided the task).
+pub fn last_state_fits(step: u64, info: &ModelInfo, latest_step: Option<u64>) -> bool {
+    step <= info.last_step && (step == info.last_step || latest_step.is_some_and(|l| l + 1 == step))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(last_step: u64) -> ModelInfo {
+        ModelInfo {
+            v: PROTOCOL_VERSION,
+            run: "r".into(),
+            cells: 2,
+            length: 1.0,
+            step: 0.001,
+            start_time: 0.0,
+            last_step,
+            area: 1e-4,
+            density: 0.1,
+            youngs_modulus: 140e3,
+            viscous: 1.0,
+            dry: 1.0,
+            eps: 0.1,
+            n_f: 0.5,
+            settle: 5.0,
+            model_description: "{}".into(),
+            boundary: "periodic".into(),
+            disclosed: true,
+        }
+    }
+
+    fn status(state: &str, step: u64) -> Status {
+        Status {
+            v: PROTOCOL_VERSION,
+            role: "plant".into(),
+            id: "p".into(),
+            state: state.into(),
+            message: String::new(),
+            step,
+            rejected: Default::default(),
+            summary: None,
+        }
+    }
+
+    #[test]
+    fn finished_is_believed_only_at_the_step_of_the_plants_last_state() {
+        let info = info(8000);
+        // the whole run
+        assert!(terminal_is_consistent(
+            &status("finished", 8000),
+            &info,
+            Some(8000)
+        ));
+        // before the last state came, and at another step than the last state's
+        assert!(!terminal_is_consistent(
+            &status("finished", 8000),
+            &info,
+            None
+        ));
+        assert!(!terminal_is_consistent(
+            &status("finished", 1000),
+            &info,
+            Some(8000)
+        ));
+        // a task-mode run the plant ended at step 4321 (its last state said so)
+        assert!(terminal_is_consistent(
+            &status("finished", 4321),
+            &info,
+            Some(4321)
+        ));
+        assert!(!terminal_is_consistent(
+            &status("finished", 8000),
+            &info,
+            Some(4321)
+        ));
+        // never beyond the run, whatever state came
+        assert!(!terminal_is_consistent(
+            &status("finished", 9000),
+            &info,
+            Some(9000)
+        ));
+        // failed and stopped: anywhere within the run
+        assert!(terminal_is_consistent(&status("failed", 10), &info, None));
+        assert!(terminal_is_consistent(
+            &status("stopped", 8000),
+            &info,
+            None
+        ));
+        assert!(!terminal_is_consistent(
+            &status("failed", 8001),
+            &info,
+            None
+        ));
+        assert!(!terminal_is_consistent(
+            &status("stopped", u64::MAX),
+            &info,
+            None
+        ));
+        assert!(terminal_is_consistent(
+            &status("running", 99_999),
+            &info,
+            None
+        ));
+    }
+
+    #[test]
+    fn a_last_state_fits_only_right_after_the_latest_answered_step_or_at_the_end() {
+        let info = info(8000);
+        assert!(last_state_fits(8000, &info, Some(7999)));
+        // resumed at the end: no state answered before
+        assert!(last_state_fits(8000, &info, None));
+        // task mode: right after the step just answered
+        assert!(last_state_fits(4321, &info, Some(4320)));
+        // a gap, a step already answered, or beyond the run: not the plant's last state
+        assert!(!last_state_fits(4321, &info, Some(100)));
+        assert!(!last_state_fits(4321, &info, Some(4321)));
+        assert!(!last_state_fits(4321, &info, None));
+        assert!(!last_state_fits(999_999, &info, Some(999_998)));
+        // a finished status ahead of the last state may wait for it only if it is ahead of the
+        // run and within it
+        assert!(finished_may_follow(
+            &status("finished", 4321),
+            &info,
+            Some(4320)
+        ));
+        assert!(finished_may_follow(&status("finished", 8000), &info, None));
+        assert!(!finished_may_follow(
+            &status("finished", 1000),
+            &info,
+            Some(4320)
+        ));
+        assert!(!finished_may_follow(
+            &status("finished", 8001),
+            &info,
+            Some(4320)
+        ));
+    }
 }

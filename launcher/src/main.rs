@@ -4,6 +4,10 @@
 //! (`crawler-controller run`) as three processes on loopback for one run id, forwards their logs
 //! with a prefix, waits for them, and prints the plant's summary and the controller's table of
 //! predicted against simulated metrics. The recording is left in `--out` (default `crawler.rrd`).
+//!
+//! The run is authenticated: the launcher creates a fresh credential in the run's private
+//! directory (mode 0600 in a 0700 directory), hands its path to the three processes and removes
+//! it when they are done.
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
@@ -75,6 +79,10 @@ struct RunArgs {
     /// Record the fields of every K-th step.
     #[arg(long, default_value_t = 4)]
     every: u64,
+    /// Run without authentication (no credential, no message seals): any process of this machine
+    /// that reaches the run's socket can then join, read and disturb it. For comparisons only.
+    #[arg(long)]
+    no_auth: bool,
     /// More arguments for the controller (after `--`), e.g. `-- --alpha 0.5`.
     #[arg(last = true)]
     controller_args: Vec<String>,
@@ -351,6 +359,30 @@ fn interrupt(child: &Child) {
         .status();
 }
 
+/// The run's credential, created by the launcher and removed when it is dropped.
+struct RunCredential {
+    path: PathBuf,
+    dir: PathBuf,
+}
+
+impl RunCredential {
+    /// A fresh credential for `run_id` in the run's private directory.
+    fn create(run_id: &str) -> anyhow::Result<Self> {
+        crawler_protocol::validate_run_id(run_id)?;
+        let dir = crawler_transport::runtime_dir::ensure_run_dir(run_id)?;
+        let path = dir.join("credential");
+        crawler_transport::Credential::generate(run_id, &path)?.save()?;
+        Ok(Self { path, dir })
+    }
+}
+
+impl Drop for RunCredential {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+        let _ = std::fs::remove_dir(&self.dir);
+    }
+}
+
 fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     preflight::check_out(&a.out)?;
     preflight::check_every(a.every)?;
@@ -364,6 +396,15 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         .run_id
         .clone()
         .unwrap_or_else(|| format!("crawler-{}", std::process::id()));
+    let credential = if a.no_auth {
+        None
+    } else {
+        Some(RunCredential::create(&run_id)?)
+    };
+    let auth_args: Vec<String> = match &credential {
+        Some(c) => vec!["--credential".into(), c.path.display().to_string()],
+        None => vec!["--no-auth".into()],
+    };
     let mut scenario_args: Vec<String> = Vec::new();
     if let Some(s) = &a.scenario {
         scenario_args.extend(["--scenario".into(), s.display().to_string()]);
@@ -383,6 +424,7 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         plant_args.push("--task".into());
     }
     plant_args.extend(["--wait-timeout".into(), "120".into()]);
+    plant_args.extend(auth_args.iter().cloned());
     let mut ctl_args: Vec<String> = vec![
         "run".into(),
         "--run-id".into(),
@@ -391,6 +433,7 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         a.policy.clone(),
     ];
     ctl_args.extend(scenario_args.iter().cloned());
+    ctl_args.extend(auth_args.iter().cloned());
     ctl_args.extend(a.controller_args.iter().cloned());
     let bridge_args: Vec<String> = vec![
         "record".into(),
@@ -403,6 +446,7 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         "--idle-timeout".into(),
         "300".into(),
     ];
+    let bridge_args: Vec<String> = bridge_args.into_iter().chain(auth_args).collect();
     // Every input is checked by the program that owns it before anything starts.
     preflight::check_child("plant", &dir.join("crawler-plant"), &plant_args)?;
     preflight::check_child("controller", &dir.join("crawler-controller"), &ctl_args)?;
@@ -411,7 +455,11 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         return Ok(Exit::Interrupted.into());
     }
     eprintln!(
-        "crawler: run {run_id}: recorder, plant and controller on loopback; recording to {}",
+        "crawler: run {run_id}: recorder, plant and controller on loopback, {}; recording to {}",
+        match &credential {
+            Some(c) => format!("authenticated with {}", c.path.display()),
+            None => "NOT authenticated (--no-auth)".to_string(),
+        },
         a.out.display()
     );
     // Order: plant, then the recorder, and the controller once the recorder is connected to the

@@ -4,6 +4,8 @@
 //! and the pieces of the `crawler-plant` program around the physics library. The roles follow
 //! libcosim's split of a co-simulation:
 //!
+//! - [`access`]: the run's credential and zenoh user file, created by the plant and removed at
+//!   its exit;
 //! - [`admission`]: one actuation message decoded and checked for the step the plant waits for,
 //!   rejections counted by cause (pure; no clock, no network);
 //! - [`link`]: the zenoh publishers, subscribers, queryable and liveliness, and the inboxes they
@@ -14,6 +16,7 @@
 //! - [`bench`]: cell updates per second of the stepping loop (`crawler-plant bench`);
 //! - [`preflight`]: what a run costs and where it really ends, said before it starts.
 
+pub mod access;
 pub mod admission;
 pub mod bench;
 pub mod checkpoint;

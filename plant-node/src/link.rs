@@ -4,19 +4,28 @@
 //! The runner sees only an [`Inbox`] (actuation bytes and control events, as channels) and an
 //! [`Outbox`] (encoded messages by [`Topic`]); this module is the one place that touches zenoh.
 
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use crossbeam_channel::{bounded, Receiver, Sender};
+use crossbeam_channel::{unbounded, Receiver, Sender};
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 use zenoh::Wait;
 
-use crawler_protocol::{encode, ModelInfo, Role, RunKeys};
-use crawler_transport::Network;
+use crawler_protocol::{encode, ModelInfo, Role, RunKeys, RunLimits};
+use crawler_transport::budget::{ByteBudget, Charged};
+use crawler_transport::gate::{self, Gate, Refused};
+use crawler_transport::{Access, Network, Seal};
 
-/// Capacity of the actuation inbox; beyond it messages are dropped and counted (flooding).
-pub const INBOX: usize = 1024;
+/// The smallest byte budget of the actuation inbox; beyond its budget messages are dropped and
+/// counted (flooding), before and after a controller joined. A controller has one answer in
+/// flight; this holds over a hundred of a 128-cell run's largest.
+pub const INBOX_BYTES: usize = 256 << 10;
+
+/// The actuation inbox's budget for a run of `limits`: at least [`INBOX_BYTES`], and room for
+/// eight of the run's largest actuation messages.
+pub fn inbox_bytes(limits: &RunLimits) -> usize {
+    INBOX_BYTES.max(8 * limits.actuation())
+}
 
 /// Control events: never dropped.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,21 +38,61 @@ pub enum Control {
     Interrupt,
 }
 
-/// What reaches the runner: actuation messages (bounded, overflow counted) and control events.
+/// What reaches the runner: actuation messages (bounded in bytes, overflow counted) and control
+/// events.
 #[derive(Debug)]
 pub struct Inbox {
-    /// Actuation messages as received, undecoded.
-    pub data: Receiver<Vec<u8>>,
+    /// Actuation messages as received (their size and seal checked), undecoded; each holds its
+    /// bytes of the inbox's budget until dropped.
+    pub data: Receiver<Charged<Vec<u8>>>,
     /// Controllers joining and leaving, and interrupts.
     pub control: Receiver<Control>,
-    /// Actuation messages dropped because `data` was full.
-    pub overflow: Arc<AtomicU64>,
+    /// The byte budget of `data`.
+    pub budget: ByteBudget,
+    /// Payloads refused at arrival (oversized, unsealed).
+    pub refused: Arc<Refused>,
+}
+
+/// The producing side of an [`Inbox`]'s data.
+#[derive(Debug, Clone)]
+pub struct Feeder {
+    tx: Sender<Charged<Vec<u8>>>,
+    budget: ByteBudget,
+}
+
+impl Feeder {
+    /// Queues `bytes` if the budget allows (else drops and counts it); true if queued.
+    pub fn offer(&self, bytes: Vec<u8>) -> bool {
+        let len = bytes.len();
+        match self.budget.charge(bytes, len) {
+            Some(charged) => self.tx.send(charged).is_ok(),
+            None => false,
+        }
+    }
 }
 
 impl Inbox {
-    /// Actuation messages dropped so far because the inbox was full.
+    /// An inbox of `budget` bytes with the control channel `control`, and its feeder.
+    pub fn channel(control: Receiver<Control>, budget: usize) -> (Feeder, Self) {
+        let (tx, data) = unbounded();
+        let budget = ByteBudget::new(budget);
+        (
+            Feeder {
+                tx,
+                budget: budget.clone(),
+            },
+            Self {
+                data,
+                control,
+                budget,
+                refused: Arc::default(),
+            },
+        )
+    }
+
+    /// Actuation messages dropped so far because the inbox's budget was spent.
     pub fn overflow(&self) -> u64 {
-        self.overflow.load(Ordering::Relaxed)
+        self.budget.overflow()
     }
 }
 
@@ -52,9 +101,9 @@ impl Inbox {
 pub enum Topic {
     /// `State(n)`, every step (reliable: the controller waits for it).
     State,
-    /// Stick-slip episodes of a step (dropped under congestion).
+    /// Stick-slip episodes of a step (reliable: the recorder records every one).
     Events,
-    /// Metrics of a closed averaging block (dropped under congestion).
+    /// Metrics of a closed averaging block (reliable).
     Metrics,
     /// The plant's status (reliable).
     Status,
@@ -70,6 +119,7 @@ pub trait Outbox {
 /// The zenoh side of the plant.
 pub struct Link {
     session: zenoh::Session,
+    seal: Option<Seal>,
     state: zenoh::pubsub::Publisher<'static>,
     events: zenoh::pubsub::Publisher<'static>,
     metrics: zenoh::pubsub::Publisher<'static>,
@@ -81,18 +131,22 @@ pub struct Link {
 }
 
 impl Link {
-    /// Opens the plant's session in `network` as process `id`: answers `model` queries with
-    /// `info`, forwards actuation into the returned inbox and controllers' liveliness to
-    /// `control_tx` (whose receiver `control_rx` becomes the inbox's control channel).
+    /// Opens the plant's session in `network` as process `id`, checking connecting sessions
+    /// with `access` and sealing with `seal`: answers `model` queries with `info`, forwards
+    /// actuation (of legal size for `info`'s run, sealed) into the returned inbox and
+    /// controllers' liveliness to `control_tx` (whose receiver `control_rx` becomes the inbox's
+    /// control channel).
     pub fn open(
         network: &Network,
         id: &str,
         info: ModelInfo,
+        (access, seal): (&Access, Option<Seal>),
         control_tx: Sender<Control>,
         control_rx: Receiver<Control>,
     ) -> anyhow::Result<(Self, Inbox)> {
         let keys = RunKeys::new(&network.run_id)?;
-        let session = crawler_transport::open(Role::Plant, network)?;
+        let limits = RunLimits::new(info.cells as usize);
+        let session = crawler_transport::open(Role::Plant, network, access, limits.largest())?;
         let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
         let publisher = |key: String, block: bool| {
             session
@@ -107,18 +161,20 @@ impl Link {
                 .map_err(z)
         };
         let state = publisher(keys.state(), true)?;
-        let events = publisher(keys.events(), false)?;
-        let metrics = publisher(keys.metrics(), false)?;
+        // Blocking like the states: with one priority per link (QoS off, which bounds what a
+        // link reassembles) a dropping publisher lost most events and metrics behind the
+        // states' batches whenever the recorder was a little behind.
+        let events = publisher(keys.events(), true)?;
+        let metrics = publisher(keys.metrics(), true)?;
         let status = publisher(keys.status(Role::Plant), true)?;
-        let (data_tx, data) = bounded::<Vec<u8>>(INBOX);
-        let overflow = Arc::new(AtomicU64::new(0));
-        let dropped = overflow.clone();
+        let (feeder, inbox) = Inbox::channel(control_rx, inbox_bytes(&limits));
+        let gate = Gate::new(limits.actuation(), seal.clone(), inbox.refused.clone());
         let actuation = session
             .declare_subscriber(keys.actuation())
             .callback(move |sample| {
-                let bytes = sample.payload().to_bytes().into_owned();
-                if data_tx.try_send(bytes).is_err() {
-                    dropped.fetch_add(1, Ordering::Relaxed);
+                // refused payloads are counted by the gate, overflow by the budget
+                if let Ok(bytes) = gate.admit(&sample) {
+                    feeder.offer(bytes);
                 }
             })
             .wait()
@@ -142,12 +198,16 @@ impl Link {
             .wait()
             .map_err(z)?;
         let info_bytes = encode(&info);
+        let model_key = keys.model();
+        let info_seal = gate::attachment(seal.as_ref(), &model_key, &info_bytes);
         let model = session
             .declare_queryable(keys.model())
             .callback(move |query| {
-                let _ = query
-                    .reply(query.key_expr().clone(), info_bytes.clone())
-                    .wait();
+                let reply = query.reply(model_key.as_str(), info_bytes.clone());
+                let _ = match &info_seal {
+                    Some(a) => reply.attachment(a.clone()).wait(),
+                    None => reply.wait(),
+                };
             })
             .wait()
             .map_err(z)?;
@@ -158,6 +218,7 @@ impl Link {
             .map_err(z)?;
         let link = Self {
             session,
+            seal,
             state,
             events,
             metrics,
@@ -166,11 +227,6 @@ impl Link {
             _actuation: actuation,
             _controllers: controllers,
             _model: model,
-        };
-        let inbox = Inbox {
-            data,
-            control: control_rx,
-            overflow,
         };
         Ok((link, inbox))
     }
@@ -189,6 +245,6 @@ impl Outbox for Link {
             Topic::Metrics => &self.metrics,
             Topic::Status => &self.status,
         };
-        let _ = publisher.put(bytes).wait();
+        let _ = gate::put(publisher, self.seal.as_ref(), bytes);
     }
 }

@@ -24,11 +24,12 @@ use crawler_plant::simulate::{mean_position, report_with_task, EpisodeLog, Repor
 use crawler_plant::slave::{Slave, StepStatus};
 use crawler_plant::task::TaskTracker;
 use crawler_protocol::{
-    encode, EpisodeMsg, Events, Metrics as MetricsMsg, ModelInfo, Rejections, Role, State, Status,
-    PROTOCOL_VERSION,
+    encode, EpisodeMsg, Events, Metrics as MetricsMsg, ModelInfo, Rejections, Role, RunLimits,
+    State, Status, PROTOCOL_VERSION,
 };
 use crawler_transport::Network;
 
+use crate::access::PlantAccess;
 use crate::admission::{Admission, Rejection};
 use crate::checkpoint::Checkpoint;
 use crate::link::{Control, Inbox, Link, Outbox, Topic};
@@ -85,11 +86,35 @@ pub fn run(
     let id = crawler_transport::process_id();
     let mut runner = Runner::new(opts, id.clone())?;
     let info = runner.model_info();
-    let (link, inbox) = Link::open(&runner.opts.network, &id, info, control_tx, control_rx)?;
+    // Created before the session, removed (the credential and zenoh's user file, if the plant
+    // made them) when it is dropped, after the session closed.
+    let access = PlantAccess::prepare(&runner.opts.network)?;
+    if let Some(c) = &access.credential {
+        eprintln!(
+            "crawler-plant: run {} authenticated with the credential {} (the controller and the recorder read it; with --credential FILE on another host)",
+            runner.run_id(),
+            c.path().display()
+        );
+    } else {
+        eprintln!(
+            "crawler-plant: warning: run {} is NOT authenticated (--no-auth): any process that reaches {} can join, read and disturb it",
+            runner.run_id(),
+            runner.opts.network.describe()
+        );
+    }
+    let (link, inbox) = Link::open(
+        &runner.opts.network,
+        &id,
+        info,
+        (&access.access, access.seal.clone()),
+        control_tx,
+        control_rx,
+    )?;
     let outcome = runner.lockstep(&inbox, &link);
     // Give subscribers a moment to receive the last messages, then close cleanly.
     std::thread::sleep(Duration::from_millis(100));
     link.close();
+    drop(access);
     outcome
 }
 
@@ -196,10 +221,15 @@ impl Runner {
         &self.opts.network.run_id
     }
 
+    /// Everything rejected so far: by admission, and at arrival (an oversized payload counts as
+    /// malformed, an unsealed one as foreign, one beyond the inbox's budget as overflow).
     fn rejected(&self, inbox: &Inbox) -> Rejections {
+        let r = self.admission.rejections();
         Rejections {
-            overflow: inbox.overflow(),
-            ..self.admission.rejections()
+            malformed: r.malformed + inbox.refused.oversize(),
+            foreign: r.foreign + inbox.refused.unsealed(),
+            overflow: r.overflow + inbox.overflow(),
+            ..r
         }
     }
 
@@ -303,13 +333,14 @@ impl Runner {
     fn publish_step_outputs(&self, out: &impl Outbox) {
         let plant = self.plant();
         let n = plant.macro_step();
-        if !plant.episodes().is_empty() {
+        // At most N episodes per message, the run's legal size (rarely more than one message).
+        let per_message = RunLimits::new(plant.cells()).episodes_per_message();
+        for chunk in plant.episodes().chunks(per_message) {
             let ev = Events {
                 v: PROTOCOL_VERSION,
                 step: n,
                 time: plant.time(),
-                episodes: plant
-                    .episodes()
+                episodes: chunk
                     .iter()
                     .map(|e| EpisodeMsg {
                         node: e.node,
@@ -477,7 +508,7 @@ impl Runner {
                     },
                     recv(inbox.data) -> bytes => {
                         let Ok(bytes) = bytes else { continue };
-                        match self.admission.admit(&bytes, n, &joined) {
+                        match self.admission.admit(bytes.get(), n, &joined) {
                             Ok(command) => {
                                 last_answer = Instant::now();
                                 break command;

@@ -6,13 +6,13 @@ use std::path::Path;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crossbeam_channel::{bounded, unbounded, Receiver, Sender};
+use crossbeam_channel::{unbounded, Receiver, Sender};
 
 use crawler_cli::Exit;
 use crawler_plant::scenario::{Overrides, Scenario};
 use crawler_plant::simulate::{simulate, SimulateOptions};
 use crawler_plant_node::checkpoint::Checkpoint;
-use crawler_plant_node::link::{Control, Inbox, Outbox, Topic, INBOX};
+use crawler_plant_node::link::{Control, Feeder, Inbox, Outbox, Topic, INBOX_BYTES};
 use crawler_plant_node::runner::{Outcome, RunOptions, Runner};
 use crawler_protocol::{
     decode, encode, Actuation, Rejections, State, Status, WaveMsg, PROTOCOL_VERSION,
@@ -107,8 +107,8 @@ impl Harness {
         join: bool,
         mut act: impl FnMut(&State) -> Act + Send + 'static,
     ) -> Self {
-        let (data_tx, data) = bounded::<Vec<u8>>(INBOX);
         let (control_tx, control) = unbounded::<Control>();
+        let (data_tx, inbox) = Inbox::channel(control, INBOX_BYTES);
         let (out_tx, out_rx) = unbounded::<(Topic, Vec<u8>)>();
         if join {
             control_tx.send(Control::ControllerUp(id.into())).unwrap();
@@ -116,11 +116,7 @@ impl Harness {
         let controller =
             std::thread::spawn(move || controller(out_rx, &data_tx, &control_tx, &mut act));
         Self {
-            inbox: Inbox {
-                data,
-                control,
-                overflow: Default::default(),
-            },
+            inbox,
             wire: Wire(out_tx),
             controller,
         }
@@ -136,7 +132,7 @@ impl Harness {
 
 fn controller(
     out: Receiver<(Topic, Vec<u8>)>,
-    data: &Sender<Vec<u8>>,
+    data: &Feeder,
     control: &Sender<Control>,
     act: &mut dyn FnMut(&State) -> Act,
 ) -> Vec<Status> {
@@ -158,7 +154,7 @@ fn controller(
                 }
                 answered = Some(s.step);
                 match act(&s) {
-                    Act::Send(msgs) => msgs.into_iter().for_each(|m| data.send(m).unwrap()),
+                    Act::Send(msgs) => msgs.into_iter().for_each(|m| assert!(data.offer(m))),
                     Act::Then(c) => {
                         control.send(c).unwrap();
                         answering = false;

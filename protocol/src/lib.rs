@@ -12,10 +12,12 @@
 
 pub mod error;
 pub mod keys;
+pub mod limits;
 pub mod messages;
 
 pub use error::ProtocolError;
 pub use keys::{validate_run_id, Role, RunKeys};
+pub use limits::RunLimits;
 pub use messages::{
     decode, encode, Actuation, EpisodeMsg, Events, Message, Metrics, ModelInfo, ModelPrediction,
     Prediction, Rejections, Series, State, Status, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,

@@ -2,7 +2,9 @@
 //!
 //! Every test run gets its own run id and its own unix socket in a fresh temporary directory, so
 //! tests can run in parallel without seeing each other; every spawned process is killed when its
-//! [`Proc`] is dropped, and every wait is bounded.
+//! [`Proc`] is dropped, and every wait is bounded. The processes of a run get that directory as
+//! their `XDG_RUNTIME_DIR`, so the run's private directory (credential, zenoh user file) lives
+//! there too and goes away with it.
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -102,6 +104,7 @@ impl Run {
         let id = format!("{tag}-{}-{n}", std::process::id());
         let dir = tempfile::Builder::new()
             .prefix("crw")
+            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o700))
             .tempdir_in("/tmp")
             .expect("temp dir");
         let endpoint = format!("unixsock-stream/{}/z.sock", dir.path().display());
@@ -111,6 +114,61 @@ impl Run {
     /// A path in the run's directory.
     pub fn path(&self, name: &str) -> PathBuf {
         self.dir.path().join(name)
+    }
+
+    /// The run's private directory, as its processes compute it (their `XDG_RUNTIME_DIR` is the
+    /// run's directory).
+    pub fn private_dir(&self) -> PathBuf {
+        self.dir.path().join("crawler").join(&self.id)
+    }
+
+    /// Where the plant of this run writes the run's credential.
+    pub fn credential(&self) -> PathBuf {
+        self.private_dir().join("credential")
+    }
+
+    /// A zenoh session on this run's endpoint (not a process of the run: a peer that dials it
+    /// in the background) that presents `access` and reassembles messages up to the run's limits
+    /// of `cells` cells.
+    pub fn session(&self, access: &crawler_transport::Access, cells: usize) -> zenoh::Session {
+        use zenoh::Wait;
+        let net = crawler_transport::Network::loopback(&self.id, &self.endpoint).unwrap();
+        let limit = crawler_protocol::RunLimits::new(cells).largest();
+        let json = crawler_transport::probe_config_json(&net, access, limit);
+        let session = zenoh::open(zenoh::Config::from_json5(&json).unwrap())
+            .wait()
+            .unwrap();
+        // give an admitted session a moment to link and exchange declarations
+        std::thread::sleep(Duration::from_millis(300));
+        session
+    }
+
+    /// The run's credential, once the plant wrote it (bounded wait).
+    pub fn load_credential(&self) -> crawler_transport::Credential {
+        let path = self.wait_for_credential(Duration::from_secs(30));
+        crawler_transport::Credential::load(&path, &self.id).unwrap()
+    }
+
+    /// A session that knows the run's zenoh password but not its message key: what a shared
+    /// router, or anyone who only passed transport authentication, is.
+    pub fn transport_only_session(&self, cells: usize) -> zenoh::Session {
+        let pw = self.load_credential().transport_password();
+        self.session(&crawler_transport::Access::Password(pw), cells)
+    }
+
+    /// Waits until the plant wrote the run's credential (bounded), and returns its path.
+    pub fn wait_for_credential(&self, timeout: Duration) -> PathBuf {
+        let path = self.credential();
+        let deadline = Instant::now() + timeout;
+        while !path.is_file() {
+            assert!(
+                Instant::now() < deadline,
+                "no credential {} within {timeout:?}",
+                path.display()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        path
     }
 
     fn net(&self) -> Vec<String> {
@@ -208,6 +266,7 @@ impl Proc {
             .current_dir(dir)
             // not `cargo run`: the launcher must not rebuild the binaries under test
             .env_remove("CARGO")
+            .env("XDG_RUNTIME_DIR", dir)
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(&out).expect("stdout file"))
             .stderr(std::fs::File::create(&err).expect("stderr file"))
@@ -293,6 +352,19 @@ impl Drop for Proc {
             let _ = self.child.wait();
         }
     }
+}
+
+/// Resident memory of process `pid` from `/proc/<pid>/status`: (now, peak), KiB; `None` once
+/// the process has ended.
+pub fn rss_kib(pid: u32) -> Option<(u64, u64)> {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field = |name: &str| {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.split_whitespace().next())
+            .and_then(|v| v.parse::<u64>().ok())
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
 /// Parses the JSON printed on stdout.

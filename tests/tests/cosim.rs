@@ -2,7 +2,7 @@
 
 use std::time::{Duration, Instant};
 
-use crawler_e2e::{json, simulate, Run};
+use crawler_e2e::{json, read_recording, repo_root, simulate, Run};
 
 const PLANT: &[&str] = &["--eps", "1", "--t-end", "6", "--json"];
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
@@ -47,7 +47,8 @@ fn cosimulation_is_bit_identical_to_the_in_process_run() {
 fn the_controller_may_start_before_the_plant() {
     let run = Run::new("order");
     let controller = run.controller(WAVE);
-    controller.wait_for_stderr("waiting for the plant", Duration::from_secs(10));
+    // the plant creates the run's credential: the controller waits for it, then for the plant
+    controller.wait_for_stderr("waiting for the run's credential", Duration::from_secs(10));
     std::thread::sleep(Duration::from_millis(500));
     let plant = run.plant(PLANT);
     let p = plant.wait(Duration::from_secs(60));
@@ -179,6 +180,8 @@ fn two_runs_at_once_do_not_cross_talk() {
 
 #[test]
 fn the_python_controller_gives_the_rust_wave_trajectory() {
+    // the venv first (a fresh clone installs it): the plant's wait for a controller is bounded
+    crawler_e2e::python();
     let run = Run::new("py");
     let plant = run.plant(&["--t-end", "6", "--json"]);
     let py = run.python_controller(&["--f0", "0.5", "--alpha", "0.5"]);
@@ -219,4 +222,58 @@ fn ctrl_c_stops_the_plant_cleanly_and_the_controller_notices() {
         "the controller must notice the plant stopped"
     );
     assert!(c.stderr.contains("plant"), "{}", c.stderr);
+}
+
+/// Task mode: the plant ends the run at the step that decided the task, long before the model's
+/// last step, with a `finished` status at that step. The controller and the recorder believe it
+/// (the plant's last state came at that step), so both end cleanly with the plant's summary; the
+/// trajectory is the in-process task-mode run's.
+#[test]
+fn a_task_mode_run_ends_early_and_everyone_believes_its_finished_status() {
+    let run = Run::new("task");
+    // the paper's scenario with a short task: 2 cm, reached after about 0.7 s of the 6 s
+    let paper = std::fs::read_to_string(repo_root().join("scenarios/paper.toml")).unwrap();
+    let short = paper.replace("distance = 1.0 ", "distance = 0.02 ");
+    assert_ne!(
+        short, paper,
+        "the paper's scenario sets the task's distance"
+    );
+    let scenario = run.path("task.toml");
+    std::fs::write(&scenario, short).unwrap();
+    let scenario = scenario.display().to_string();
+    let task = ["--scenario", scenario.as_str(), "--task"];
+    let rrd = run.path("task.rrd");
+    let plant = run.plant(&[PLANT, &task].concat());
+    let bridge = run.bridge(&rrd, &[]);
+    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
+    let controller = run.controller(&[WAVE, &["--json"]].concat());
+    let p = plant.wait(Duration::from_secs(60));
+    let c = controller.wait(Duration::from_secs(30));
+    let b = bridge.wait(Duration::from_secs(30));
+    assert!(p.status.success(), "plant: {}", p.stderr);
+    assert!(c.status.success(), "controller: {}", c.stderr);
+    assert!(b.status.success(), "bridge: {}", b.stderr);
+    let sim = simulate(&[SIM, &task].concat());
+    let full = simulate(SIM);
+    let co = json(&p.stdout);
+    assert_eq!(co["task"]["outcome"], "reached", "{}", p.stdout);
+    for key in ["state_digest", "steps", "macro_steps", "task"] {
+        assert_eq!(co[key], sim[key], "{key}");
+    }
+    let last = sim["macro_steps"].as_u64().unwrap();
+    assert!(
+        last < full["macro_steps"].as_u64().unwrap() / 2,
+        "the task did not end the run early: {last} steps"
+    );
+    assert!(p.stderr.contains("the run ends there"), "{}", p.stderr);
+    // the controller answered every step up to the plant's last and took its real summary
+    let summary = json(&c.stdout);
+    assert_eq!(summary["steps"].as_u64(), Some(last), "{}", c.stdout);
+    assert_eq!(summary["plant"]["state_digest"], sim["state_digest"]);
+    assert!(!c.stderr.contains("inconsistent"), "{}", c.stderr);
+    // the recorder rejected nothing and kept the plant's summary and every state
+    assert!(b.stderr.contains("(0 invalid)"), "{}", b.stderr);
+    let rec = read_recording(&rrd).unwrap();
+    assert_eq!(rec.entity("tail/plant").rows as u64, last + 1);
+    assert!(rec.entity("summary/velocity").rows > 0);
 }

@@ -258,8 +258,19 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
     );
     check(
         "crawler-controller",
-        &["run", "--wait-timeout", "1"],
+        &["run", "--wait-timeout", "1", "--no-auth"],
         "no plant answered",
+    );
+    // an authenticated run (the default) without its plant: no credential to read
+    check(
+        "crawler-controller",
+        &["run", "--run-id", "nobody-runs-this", "--wait-timeout", "1"],
+        "no credential",
+    );
+    check(
+        "crawler-controller",
+        &["run", "--credential", "/", "--wait-timeout", "1"],
+        "--credential",
     );
     check("crawler-bridge", &["record", "--every", "0"], "--every");
 }

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use zenoh::Wait;
 
 use crawler_e2e::{json, read_recording, simulate, Run};
-use crawler_protocol::{decode, Role, RunKeys, State};
+use crawler_protocol::{decode, RunKeys, State};
 
 const PLANT: &[&str] = &["--eps", "1", "--t-end", "8", "--json"];
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
@@ -62,7 +62,7 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
     assert!(rec.entity("heatmap/u").rows >= 1);
     // per-period metrics with the models' predictions overlaid
     let blocks = rec.entity("metrics/velocity/plant").rows;
-    assert!(blocks >= 40, "{blocks} metric blocks");
+    assert!(blocks >= 40, "{blocks} metric blocks; bridge: {}", b.stderr);
     assert_eq!(rec.entity("metrics/velocity/improved").rows, blocks);
     assert_eq!(rec.entity("metrics/power/paper").rows, blocks);
     // stick-slip: lanes and episode log
@@ -101,8 +101,7 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
 
 /// Tracks the latest step the plant published (a passive subscriber of the run).
 fn watch_steps(run: &Run) -> (zenoh::Session, Arc<AtomicU64>) {
-    let net = crawler_transport::Network::loopback(&run.id, &run.endpoint).unwrap();
-    let session = crawler_transport::open(Role::Bridge, &net).unwrap();
+    let session = run.transport_only_session(128);
     let keys = RunKeys::new(&run.id).unwrap();
     let latest = Arc::new(AtomicU64::new(0));
     let l2 = latest.clone();

@@ -3,6 +3,7 @@
 //! `pingpong pong --endpoint E` answers every ping with `--reply` bytes; `pingpong ping --endpoint E
 //! --size S --seconds T` sends S-byte pings (as the plant sends states: router session, express,
 //! blocking congestion control, callback into a channel) and prints round trips per second.
+//! Both sides run unauthenticated, as a bare zenoh baseline.
 
 use std::time::{Duration, Instant};
 
@@ -11,7 +12,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 use crawler_protocol::Role;
-use crawler_transport::Network;
+use crawler_transport::{Access, Network};
 
 fn arg(args: &[String], name: &str, default: &str) -> String {
     args.iter()
@@ -58,7 +59,8 @@ fn main() -> anyhow::Result<()> {
     let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
     match mode.as_str() {
         "ping" => {
-            let session = crawler_transport::open(Role::Plant, &net)?;
+            let session =
+                crawler_transport::open(Role::Plant, &net, &Access::Open, size.max(reply))?;
             let (publisher, rx, _sub) = link(&session, "bench/ping", "bench/pong")?;
             let payload = vec![7u8; size];
             // wait for the pong side
@@ -83,7 +85,8 @@ fn main() -> anyhow::Result<()> {
             );
         }
         "pong" => {
-            let session = crawler_transport::open(Role::Controller, &net)?;
+            let session =
+                crawler_transport::open(Role::Controller, &net, &Access::Open, size.max(reply))?;
             let (publisher, rx, _sub) = link(&session, "bench/pong", "bench/ping")?;
             let answer = vec![9u8; reply];
             while let Ok(_ping) = rx.recv_timeout(Duration::from_secs_f64(seconds + 10.0)) {

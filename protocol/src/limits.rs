@@ -1,0 +1,179 @@
+//! The largest legal message of a run, per key: receivers drop anything larger at arrival.
+//!
+//! A run of N cells never needs a message larger than these bounds, which follow from the
+//! MessagePack encoding (`docs/protocol.md`): a float64 takes 9 bytes, a boolean 1, an array or
+//! map header at most 5, an identifier at most [`MAX_ID_LEN`] bytes, a free text at most
+//! [`MAX_TEXT_LEN`] bytes. Every bound holds with margin for any valid message; tests encode the
+//! largest messages and check them against these numbers.
+
+use crate::messages::{MAX_ID_LEN, MAX_TEXT_LEN};
+
+/// Room for a message's field names, scalars and headers, bytes (the largest fixed part of any
+/// message is under 300 bytes, an identifier included).
+const HEADER: usize = 2 * MAX_ID_LEN + 256;
+
+/// Bytes of one encoded episode at most (a map of 5 named fields).
+pub const EPISODE_BYTES: usize = 72;
+
+/// The per-key size limits of a run with a given number of cells, bytes of payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunLimits {
+    /// Number of cells N.
+    pub cells: usize,
+}
+
+impl RunLimits {
+    /// The limits of a run of `cells` cells.
+    pub fn new(cells: usize) -> Self {
+        Self { cells }
+    }
+
+    /// A `State`: three arrays of N float64 and one of N booleans, about 28 N bytes.
+    pub fn state(&self) -> usize {
+        28 * self.cells + HEADER
+    }
+
+    /// An `Actuation`: a wave, or a field of N float64, about 9 N bytes.
+    pub fn actuation(&self) -> usize {
+        9 * self.cells + HEADER
+    }
+
+    /// An `Events` message: at most N episodes (the plant splits longer lists).
+    pub fn events(&self) -> usize {
+        EPISODE_BYTES * self.episodes_per_message() + HEADER
+    }
+
+    /// Episodes one `Events` message carries at most: N.
+    pub fn episodes_per_message(&self) -> usize {
+        self.cells.max(1)
+    }
+
+    /// A `Status`, `ModelInfo` or `Prediction`, whatever N: two free texts at their limit (a
+    /// status's message and summary) and room for the rest.
+    pub fn text_message() -> usize {
+        2 * MAX_TEXT_LEN + 4 * HEADER
+    }
+
+    /// A `Metrics` message (fixed size).
+    pub fn metrics() -> usize {
+        HEADER + 256
+    }
+
+    /// The largest legal message of the run on any key: what zenoh is told to reassemble at
+    /// most (`transport.link.rx.max_message_size`).
+    pub fn largest(&self) -> usize {
+        self.state()
+            .max(self.actuation())
+            .max(self.events())
+            .max(Self::text_message())
+    }
+
+    /// The largest legal message on any key before the run's size is known: what a client's
+    /// first session (opened to fetch the plant's `ModelInfo`) reassembles at most. A larger
+    /// run (N beyond about 29 000 cells) makes the client reopen its session with the run's
+    /// own limit.
+    pub fn before_model() -> usize {
+        Self::text_message()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::messages::{encode, EpisodeMsg, Events, Metrics, State, Status};
+    use crate::{Actuation, Rejections};
+
+    fn id() -> String {
+        "x".repeat(MAX_ID_LEN)
+    }
+
+    #[test]
+    fn the_largest_messages_of_a_run_fit_its_limits() {
+        for n in [1usize, 2, 17, 256, 4096] {
+            let l = RunLimits::new(n);
+            let big = -1.234_567_890_123_456_7e300;
+            let state = State {
+                v: u16::MAX,
+                step: u64::MAX,
+                time: big,
+                controller: id(),
+                u: vec![big; n],
+                vel: vec![big; n],
+                tension: vec![big; n],
+                stuck: vec![true; n],
+                mean_speed: big,
+                input_power: big,
+                last: true,
+            };
+            let s = encode(&state).len();
+            assert!(s <= l.state(), "state {s} > {}", l.state());
+            // the bound is tight: within a header of the real size
+            assert!(
+                l.state() - s < HEADER,
+                "state bound too loose: {s} vs {}",
+                l.state()
+            );
+            let act = Actuation {
+                v: u16::MAX,
+                step: u64::MAX,
+                controller: id(),
+                wave: None,
+                field: Some(vec![big; n]),
+            };
+            assert!(encode(&act).len() <= l.actuation());
+            let ep = EpisodeMsg {
+                node: u32::MAX,
+                start: big,
+                end: big,
+                duration: big,
+                direction: -1,
+            };
+            let events = Events {
+                v: u16::MAX,
+                step: u64::MAX,
+                time: big,
+                episodes: vec![ep; l.episodes_per_message()],
+            };
+            let e = encode(&events).len();
+            assert!(e <= l.events(), "events {e} > {}", l.events());
+            assert!(l.largest() >= l.state().max(l.events()));
+        }
+        let status = Status {
+            v: u16::MAX,
+            role: id(),
+            id: id(),
+            state: "finished".into(),
+            message: "m".repeat(MAX_TEXT_LEN),
+            step: u64::MAX,
+            rejected: Rejections {
+                malformed: u64::MAX,
+                version: u64::MAX,
+                invalid: u64::MAX,
+                foreign: u64::MAX,
+                stale: u64::MAX,
+                duplicate: u64::MAX,
+                future: u64::MAX,
+                overflow: u64::MAX,
+            },
+            summary: Some("s".repeat(MAX_TEXT_LEN)),
+        };
+        assert!(encode(&status).len() <= RunLimits::text_message());
+        let m = Metrics {
+            v: u16::MAX,
+            step: u64::MAX,
+            block: u64::MAX,
+            steady: true,
+            start: -1e300,
+            end: -1e300,
+            velocity: -1e300,
+            power: -1e300,
+            mileage: -1e300,
+            max_stress: -1e300,
+            max_strain: -1e300,
+            stuck_fraction: -1e300,
+            mean_friction_selection: -1e300,
+            episodes_per_node_per_period: -1e300,
+        };
+        assert!(encode(&m).len() <= RunLimits::metrics());
+    }
+}
