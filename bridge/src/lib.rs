@@ -6,7 +6,9 @@
 //! it falls behind (and saying so in the recording).
 
 pub mod layout;
+pub mod output;
 pub mod paths;
 pub mod recorder;
+pub mod viewer;
 
 pub use recorder::{Counts, Incoming, Recorder, RecorderOptions};
