@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use crawler_e2e::{read_recording, repo_root, Recording, Run};
 
-const PLANT: &[&str] = &["--eps", "1", "--t-end", "3"];
+const PLANT: &[&str] = &["--eps", "1", "--t-end", "6"];
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
 
 /// The venv's `rerun` (installs it on first use; idempotent).
