@@ -54,7 +54,8 @@ def main():
              "--t-end", str(a.steps * 1e-3), "--wait-timeout", "120"],
             stdout=subprocess.DEVNULL, stderr=errs["plant"])
         procs["bridge"] = subprocess.Popen(
-            [os.path.join(REL, "crawler-bridge"), "record", *net, "--out", rrd, "--every", str(a.every)],
+            [os.path.join(REL, "crawler-bridge"), "record", *net, "--out", rrd, "--every", str(a.every),
+             "--no-footer"],  # flat memory: the footer's index grows with the run
             stdout=subprocess.DEVNULL, stderr=errs["bridge"])
         deadline = time.time() + 60
         while "plant found" not in open(errs["bridge"].name).read():

@@ -9,7 +9,9 @@
 
 pub mod checks;
 pub mod layout;
+pub mod output;
 pub mod paths;
 pub mod recorder;
+pub mod viewer;
 
 pub use recorder::{Counts, Incoming, Recorder, RecorderOptions};

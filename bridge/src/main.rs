@@ -10,6 +10,8 @@ use clap::{Args, Parser, Subcommand};
 use crossbeam_channel::{bounded, Sender};
 use zenoh::Wait;
 
+use crawler_bridge::output::Output;
+use crawler_bridge::viewer::{self, Link, Viewer};
 use crawler_bridge::{Incoming, Recorder, RecorderOptions};
 use crawler_cli::Exit;
 use crawler_protocol::{decode, ModelInfo, Role, RunKeys, RunLimits};
@@ -59,11 +61,23 @@ struct RecordArgs {
     /// Capacity of the inbox between the zenoh callbacks and the writer, messages.
     #[arg(long, default_value_t = 4096)]
     inbox: usize,
-    /// End the file with an index of its chunks (faster loading of very large recordings; costs
-    /// memory growing with the run's length, about 40 MB per 10^6 steps). Without it memory
-    /// stays flat; `rerun rrd optimize` can add the index later.
+    /// Leave out the index of chunks (Rerun's footer) at the end of the file: memory stays flat
+    /// however long the run (the index costs about 40 MB per 10^6 steps), but `rerun rrd verify`
+    /// needs `--check-footers=false` (or add the index later with `rerun rrd optimize`).
     #[arg(long)]
-    footer: bool,
+    no_footer: bool,
+    /// Also stream the recording live to a running Rerun viewer at URL (its gRPC address) while
+    /// writing the file. Start one with `rerun` (or `.venv/bin/rerun`), or pass --spawn. A viewer
+    /// that is absent, slow or closed never stops the recording: it misses data, the file does not.
+    #[arg(long, value_name = "URL", num_args = 0..=1, default_missing_value = crawler_bridge::viewer::DEFAULT_URL)]
+    connect: Option<String>,
+    /// Start a Rerun viewer (listening on loopback at the --connect port, default 9876) unless one
+    /// already runs there, and stream to it; implies --connect.
+    #[arg(long)]
+    spawn: bool,
+    /// The `rerun` executable --spawn starts (default: `rerun` from PATH).
+    #[arg(long, value_name = "PATH", requires = "spawn")]
+    viewer_exe: Option<PathBuf>,
     /// Give up if no message arrives for this many seconds (default: wait as long as it takes).
     #[arg(long)]
     idle_timeout: Option<f64>,
@@ -278,6 +292,54 @@ impl Connection {
     }
 }
 
+/// How long the viewer may take to answer before the recorder says it is not there.
+const VIEWER_GRACE: Duration = Duration::from_secs(3);
+
+/// How long the end of the run waits for the viewer to confirm what it was sent.
+const VIEWER_FLUSH: Duration = Duration::from_secs(10);
+
+/// How a recording ended.
+struct Closed {
+    /// The run produced a recording, now at `--out`.
+    recorded: bool,
+    /// What the viewer got (empty without a viewer).
+    viewer: String,
+}
+
+/// Ends the recording: writes what is pending, closes the file (with its footer), moves it to
+/// `--out` if the run produced one (else removes it, leaving `--out` as it was), and flushes the
+/// viewer (bounded).
+fn close(
+    recorder: &mut Recorder,
+    output: &mut Output,
+    viewer: Option<&Viewer>,
+) -> anyhow::Result<Closed> {
+    recorder.finish()?;
+    let recorded = recorder.counts().states > 0;
+    if recorded {
+        output.promote()?;
+    }
+    let viewer = match viewer {
+        None => String::new(),
+        Some(v) => {
+            let d = v.finish(VIEWER_FLUSH);
+            let said = match (d.link, d.flushed, d.dropped) {
+                (Link::Connected, true, 0) => "the viewer got everything".to_string(),
+                (Link::Connected, true, n) => {
+                    format!("the viewer missed {n} messages (it was behind)")
+                }
+                (Link::Connected, false, _) => {
+                    "the viewer did not confirm the end of the data in time".to_string()
+                }
+                (Link::Connecting, _, _) => "no viewer answered".to_string(),
+                (Link::Gone, _, n) => format!("the viewer went away and missed {n} messages"),
+            };
+            format!("; {said} at {}", v.url())
+        }
+    };
+    Ok(Closed { recorded, viewer })
+}
+
 fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(
         a.every >= 1,
@@ -307,7 +369,54 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     }
     let network = a.network.network()?;
     let keys = RunKeys::new(&network.run_id)?;
-    let rec = crawler_bridge::recorder::open_file(&a.out, a.footer)?;
+    let mut output = Output::new(&a.out)?;
+    let url = match (&a.connect, a.spawn) {
+        (Some(u), _) => Some(viewer::parse_url(u)?),
+        (None, true) => Some(viewer::parse_url(viewer::DEFAULT_URL)?),
+        (None, false) => None,
+    };
+    if a.spawn {
+        if let Some(u) = &url {
+            anyhow::ensure!(
+                u.origin.is_localhost(),
+                "invalid --connect = {u} with --spawn: allowed a loopback address (the viewer is started on this machine)"
+            );
+        }
+    }
+    // from here on Ctrl-C ends the recording properly (and removes an unused temporary file)
+    let (stop_tx, stop_rx) = bounded::<()>(4);
+    ctrlc::set_handler(move || {
+        let _ = stop_tx.try_send(());
+    })?;
+    let temp = output.create()?.to_path_buf();
+    let (viewer, viewer_sink) = match url {
+        Some(u) => {
+            // never fail the run because of the viewer: say so and record the file
+            let spawned = !a.spawn
+                || match viewer::spawn(&u, a.viewer_exe.as_deref()) {
+                    Ok(Some(pid)) => {
+                        eprintln!("crawler-bridge: started a Rerun viewer (pid {pid}) at {u}");
+                        true
+                    }
+                    Ok(None) => {
+                        eprintln!("crawler-bridge: a viewer already listens at {u}; using it");
+                        true
+                    }
+                    Err(e) => {
+                        eprintln!("crawler-bridge: warning: {e:#}; recording to the file only");
+                        false
+                    }
+                };
+            if spawned {
+                let (v, sink) = Viewer::connect(u)?;
+                (Some(v), Some(sink))
+            } else {
+                (None, None)
+            }
+        }
+        None => (None, None),
+    };
+    let rec = crawler_bridge::recorder::open(&temp, !a.no_footer, viewer_sink)?;
     let opts = RecorderOptions {
         every: a.every,
         lanes: a.lanes,
@@ -315,11 +424,6 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         ..Default::default()
     };
     let mut recorder = Recorder::new(rec, opts)?;
-
-    let (stop_tx, stop_rx) = bounded::<()>(4);
-    ctrlc::set_handler(move || {
-        let _ = stop_tx.try_send(());
-    })?;
 
     let interrupted = || !stop_rx.is_empty();
     let credential = network.wait_for_credential(
@@ -342,9 +446,13 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     let (plant_tx, plant_rx) = crossbeam_channel::unbounded::<Incoming>();
     let id = crawler_transport::process_id();
     eprintln!(
-        "crawler-bridge: recording {} into {} (waiting for the plant)",
+        "crawler-bridge: recording {} into {}{} (waiting for the plant)",
         network.describe(),
-        a.out.display()
+        a.out.display(),
+        viewer
+            .as_ref()
+            .map(|v| format!(" and live to the viewer at {}", v.url()))
+            .unwrap_or_default()
     );
     let mut credential = credential;
     let started = Instant::now();
@@ -360,8 +468,17 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         &mut give_up,
     )?
     else {
-        recorder.finish()?;
-        eprintln!("crawler-bridge: no plant; recording closed");
+        let c = close(&mut recorder, &mut output, viewer.as_ref())?;
+        eprintln!(
+            "crawler-bridge: {}; nothing recorded (no state arrived), {} left as it was{}",
+            if stop_rx.is_empty() {
+                "no plant"
+            } else {
+                "interrupted"
+            },
+            a.out.display(),
+            c.viewer
+        );
         return Ok(if stop_rx.is_empty() {
             Exit::Timeout
         } else {
@@ -373,6 +490,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     let mut model_known = false;
     let mut next_query = Instant::now();
     let mut last_message = Instant::now();
+    let mut viewer_warned = false;
     let interrupted = loop {
         crossbeam_channel::select! {
             recv(stop_rx) -> _ => break true,
@@ -389,6 +507,19 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 }
             },
             default(Duration::from_millis(100)) => {},
+        }
+        if !output.promoted() && recorder.counts().states > 0 {
+            // the run produced a recording: it replaces --out from now on
+            output.promote()?;
+        }
+        if let Some(v) = &viewer {
+            if !viewer_warned && v.link() == Link::Connecting && started.elapsed() > VIEWER_GRACE {
+                viewer_warned = true;
+                eprintln!(
+                    "crawler-bridge: warning: no Rerun viewer answers at {} (start one with `rerun --bind 127.0.0.1`, or pass --spawn); recording to the file, the viewer gets the data if it comes up",
+                    v.url()
+                );
+            }
         }
         recorder.pace(rx.len(), dropped.load(Ordering::Relaxed));
         recorder.maybe_flush();
@@ -414,7 +545,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                     )? {
                         Some(c) => conn = c,
                         None => {
-                            recorder.finish()?;
+                            close(&mut recorder, &mut output, viewer.as_ref())?;
                             eprintln!("crawler-bridge: interrupted; recording closed properly");
                             return Ok(Exit::Interrupted.into());
                         }
@@ -434,8 +565,16 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         }
         if let Some(t) = a.idle_timeout {
             if last_message.elapsed().as_secs_f64() > t {
-                recorder.finish()?;
-                eprintln!("crawler-bridge: no message for {t} s; recording closed");
+                let c = close(&mut recorder, &mut output, viewer.as_ref())?;
+                eprintln!(
+                    "crawler-bridge: no message for {t} s; {}{}",
+                    if c.recorded {
+                        format!("recording closed {}", a.out.display())
+                    } else {
+                        format!("nothing recorded, {} left as it was", a.out.display())
+                    },
+                    c.viewer
+                );
                 return Ok(Exit::Timeout.into());
             }
         }
@@ -445,21 +584,42 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         recorder.handle(msg.split().0)?;
     }
     recorder.refused_at_arrival(refused.oversize(), refused.unsealed());
-    recorder.finish()?;
+    let closed = close(&mut recorder, &mut output, viewer.as_ref())?;
     let c = recorder.counts();
-    eprintln!(
-        "crawler-bridge: {} {}: {} states ({} with fields), {} metric blocks, {} episodes, {} rejected ({} invalid), {} refused at arrival, {} dropped",
-        if interrupted { "interrupted; recording closed properly" } else { "run finished; recording closed" },
-        a.out.display(),
-        c.states,
-        c.recorded_steps,
-        c.metric_blocks,
-        c.episodes,
-        c.rejected,
-        c.invalid,
-        c.refused,
-        c.dropped
-    );
+    if closed.recorded {
+        eprintln!(
+            "crawler-bridge: {} {}: {} states ({} with fields), {} metric blocks, {} episodes, {} rejected ({} invalid), {} refused at arrival, {} dropped{}",
+            if interrupted { "interrupted; recording closed properly" } else { "run finished; recording closed" },
+            a.out.display(),
+            c.states,
+            c.recorded_steps,
+            c.metric_blocks,
+            c.episodes,
+            c.rejected,
+            c.invalid,
+            c.refused,
+            c.dropped,
+            closed.viewer
+        );
+    } else {
+        eprintln!(
+            "crawler-bridge: {}; nothing recorded (no state arrived), {} left as it was{}",
+            if interrupted {
+                "interrupted"
+            } else {
+                "run ended"
+            },
+            a.out.display(),
+            closed.viewer
+        );
+    }
     conn.close();
-    Ok(Exit::Finished.into())
+    // Ctrl-C (SIGINT, SIGTERM) ends with 130 like every program of the project, after the
+    // recording was closed properly
+    Ok(if interrupted {
+        Exit::Interrupted
+    } else {
+        Exit::Finished
+    }
+    .into())
 }

@@ -123,28 +123,42 @@ pub struct Recorder {
 /// Most `finished` statuses held while the plant's last state is awaited.
 const HELD_FINISHED_MAX: usize = 8;
 
-/// A recording written to `path`, with the default layout.
+/// A recording written to `path`, with the default layout, and streamed to `viewer` if given.
 ///
-/// With `footer` the file ends with an index of every chunk (faster loading of very large
-/// files), but the encoder keeps that index in memory for the whole run: about 40 MB more per
-/// 10^6 steps. Without it memory stays flat however long the run; `rerun rrd optimize` can add
-/// the index afterwards.
-pub fn open_file(path: &Path, footer: bool) -> anyhow::Result<RecordingStream> {
+/// With `footer` (the default of `crawler-bridge record`) the file ends with Rerun's footer, an
+/// index of every chunk: `rerun rrd verify` wants it and large files load faster. The encoder
+/// keeps that index in memory for the whole run (about 40 MB per 10^6 steps); without it memory
+/// stays flat however long the run, and `rerun rrd optimize` can add the index afterwards. The
+/// footer is written when the file sink closes: [`Recorder::finish`].
+pub fn open(
+    path: &Path,
+    footer: bool,
+    viewer: Option<crate::viewer::ViewerSink>,
+) -> anyhow::Result<RecordingStream> {
     let cannot = |e: &dyn std::fmt::Display| {
         anyhow::anyhow!("cannot write recording {}: {e}", path.display())
     };
-    let sink = rerun::sink::FileSink::with_options(
+    let file = rerun::sink::FileSink::with_options(
         path,
         rerun::sink::FileSinkOptions {
             write_footer: footer,
         },
     )
     .map_err(|e| cannot(&e))?;
+    let mut sinks: Vec<Box<dyn rerun::sink::LogSink>> = vec![Box::new(file)];
+    if let Some(v) = viewer {
+        sinks.push(Box::new(v));
+    }
     let rec = rerun::RecordingStreamBuilder::new("crawler")
-        .set_sinks((sink,))
+        .set_sinks(sinks)
         .map_err(|e| cannot(&e))?;
     crate::layout::send(&rec)?;
     Ok(rec)
+}
+
+/// A recording written to `path` only (see [`open`]).
+pub fn open_file(path: &Path, footer: bool) -> anyhow::Result<RecordingStream> {
+    open(path, footer, None)
 }
 
 impl Recorder {
@@ -453,7 +467,7 @@ impl Recorder {
         }
     }
 
-    /// Records every pending state (end of run or shutdown) and flushes.
+    /// Records every pending state (end of run or shutdown), flushes and closes the file.
     pub fn finish(&mut self) -> anyhow::Result<()> {
         self.drain(true)?;
         // finished statuses no last state of the plant confirmed: not the plant's end
@@ -489,6 +503,8 @@ impl Recorder {
         self.rec
             .flush_blocking()
             .map_err(|e| anyhow::anyhow!("cannot flush the recording: {e}"))?;
+        // close the file (its writer thread ends and writes the footer); a viewer stays connected
+        self.rec.finalize_deferred_sinks();
         Ok(())
     }
 

@@ -139,7 +139,8 @@ fn interrupted_recording(signal: &str) {
     bridge.signal(signal);
     let b = bridge.wait(Duration::from_secs(20));
     if signal != "-9" {
-        assert!(b.status.success(), "{}", b.stderr);
+        // closed properly, and says it was interrupted: 130, like every program of the project
+        assert_eq!(b.status.code(), Some(130), "{}", b.stderr);
         assert!(
             b.stderr.contains("interrupted; recording closed properly"),
             "{}",
