@@ -79,6 +79,15 @@ struct RunArgs {
     /// Record the fields of every K-th step.
     #[arg(long, default_value_t = 4)]
     every: u64,
+    /// Watch the run live: the recorder streams to a Rerun viewer (it starts one on loopback,
+    /// `.venv/bin/rerun` if the project's venv has it, else `rerun` from PATH, unless one already
+    /// listens) while it writes `--out`. A missing or slow viewer never stops the run.
+    #[arg(long)]
+    view: bool,
+    /// Watch the run live in the Rerun viewer already running at URL (its gRPC address, e.g.
+    /// rerun+http://127.0.0.1:9876/proxy) while writing `--out`.
+    #[arg(long, value_name = "URL", conflicts_with = "view")]
+    view_url: Option<String>,
     /// Run without authentication (no credential, no message seals): any process of this machine
     /// that reaches the run's socket can then join, read and disturb it. For comparisons only.
     #[arg(long)]
@@ -446,7 +455,19 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         "--idle-timeout".into(),
         "300".into(),
     ];
-    let bridge_args: Vec<String> = bridge_args.into_iter().chain(auth_args).collect();
+    let mut bridge_args: Vec<String> = bridge_args.into_iter().chain(auth_args).collect();
+    if let Some(url) = &a.view_url {
+        bridge_args.extend(["--connect".into(), url.clone()]);
+    } else if a.view {
+        bridge_args.push("--spawn".into());
+        let venv = std::env::current_dir()
+            .map(|d| d.join(".venv/bin/rerun"))
+            .ok()
+            .filter(|p| p.is_file());
+        if let Some(exe) = venv {
+            bridge_args.extend(["--viewer-exe".into(), exe.display().to_string()]);
+        }
+    }
     // Every input is checked by the program that owns it before anything starts.
     preflight::check_child("plant", &dir.join("crawler-plant"), &plant_args)?;
     preflight::check_child("controller", &dir.join("crawler-controller"), &ctl_args)?;
