@@ -468,6 +468,12 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         &mut give_up,
     )?
     else {
+        if let Some(v) = viewer.as_ref().filter(|v| v.link() == Link::Connecting) {
+            eprintln!(
+                "crawler-bridge: warning: no Rerun viewer answers at {} (start one with `rerun --bind 127.0.0.1`, or pass --spawn)",
+                v.url()
+            );
+        }
         let c = close(&mut recorder, &mut output, viewer.as_ref())?;
         eprintln!(
             "crawler-bridge: {}; nothing recorded (no state arrived), {} left as it was{}",

@@ -378,6 +378,8 @@ impl RunCredential {
     /// A fresh credential for `run_id` in the run's private directory.
     fn create(run_id: &str) -> anyhow::Result<Self> {
         crawler_protocol::validate_run_id(run_id)?;
+        // never replace the credential of a run that is going on
+        drop(crawler_transport::runtime_dir::claim(run_id)?);
         let dir = crawler_transport::runtime_dir::ensure_run_dir(run_id)?;
         let path = dir.join("credential");
         crawler_transport::Credential::generate(run_id, &path)?.save()?;

@@ -41,7 +41,7 @@ fn a_failing_process_stops_the_run_with_its_reason() {
         (
             &["--t-end=-1"],
             "the plant refused its inputs",
-            "invalid numerics.t_end = -1",
+            "(numerics.t_end) = -1",
         ),
         (
             &["--policy", "nosuch"],

@@ -19,6 +19,8 @@ pub struct PlantAccess {
     created: Vec<PathBuf>,
     /// The run's private directory, removed on drop if empty.
     run_dir: Option<PathBuf>,
+    /// This plant's hold on the run id (released first on drop).
+    claim: Option<runtime_dir::RunClaim>,
 }
 
 impl PlantAccess {
@@ -26,6 +28,8 @@ impl PlantAccess {
     /// fresh credential at the default path (replacing any earlier one), or the one named by
     /// `--credential` (created if missing); and zenoh's user file in the private directory.
     pub fn prepare(network: &Network) -> anyhow::Result<Self> {
+        // first of all: no other plant runs this run id (nothing of its is touched otherwise)
+        let claim = runtime_dir::claim(&network.run_id)?;
         let uses_run_dir = network.config_file.is_none()
             && network.endpoint == crawler_transport::default_endpoint(&network.run_id);
         let mut me = Self {
@@ -34,6 +38,7 @@ impl PlantAccess {
             credential: None,
             created: Vec::new(),
             run_dir: None,
+            claim: Some(claim),
         };
         let Auth::Credential { path, explicit } = &network.auth else {
             if uses_run_dir {
@@ -68,6 +73,7 @@ impl PlantAccess {
 
 impl Drop for PlantAccess {
     fn drop(&mut self) {
+        drop(self.claim.take());
         for f in &self.created {
             let _ = std::fs::remove_file(f);
         }

@@ -88,6 +88,7 @@ impl Checkpoint {
         }
         // The state's values are validated when the plant is restored from it.
         Plant::from_state(&c.state)?;
+        c.task.validate()?;
         Ok(c)
     }
 }

@@ -175,6 +175,8 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
         eprintln!("crawler-plant: {note}");
     }
     if a.check {
+        // the run id must be free (the claim is released at once)
+        drop(crawler_transport::runtime_dir::claim(&network.run_id)?);
         eprintln!("crawler-plant: inputs valid ({})", network.describe());
         return Ok(Exit::Finished.into());
     }

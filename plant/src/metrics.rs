@@ -49,6 +49,37 @@ pub struct Sums {
 }
 
 impl Sums {
+    /// Every number one a run can have produced (sums read from a file): finite, counts and
+    /// times non-negative, the largest tension `-inf` for an empty span.
+    pub fn validate(&self, name: &str) -> Result<(), crate::error::ParamError> {
+        use crate::error::{finite, non_negative};
+        for (field, x) in [
+            ("start", self.start),
+            ("end", self.end),
+            ("sum_v", self.sum_v),
+            ("sum_v_old", self.sum_v_old),
+            ("first_v_old", self.first_v_old),
+            ("last_v", self.last_v),
+            ("sum_s", self.sum_s),
+            ("friction_force", self.friction_force),
+            ("energy_in", self.energy_in),
+            ("dissipated", self.dissipated),
+        ] {
+            finite(&format!("{name}.{field}"), x)?;
+        }
+        for (field, x) in [
+            ("stuck", self.stuck),
+            ("max_strain", self.max_strain),
+            ("stick_time", self.stick_time),
+        ] {
+            non_negative(&format!("{name}.{field}"), x)?;
+        }
+        if self.max_tension != f64::NEG_INFINITY {
+            finite(&format!("{name}.max_tension"), self.max_tension)?;
+        }
+        Ok(())
+    }
+
     /// An empty span starting at `start` seconds.
     pub fn empty(start: f64) -> Self {
         Self {
@@ -235,6 +266,24 @@ pub struct MetricsTracker {
 }
 
 impl MetricsTracker {
+    /// Every number one a run can have produced (a tracker read from a file).
+    pub fn validate(&self) -> Result<(), crate::error::ParamError> {
+        use crate::error::{finite, positive};
+        positive("state.metrics.block_len", self.block_len)?;
+        for (field, x) in [
+            ("origin", self.origin),
+            ("settle_until", self.settle_until),
+            ("block_end", self.block_end),
+            ("run_settle_until", self.run_settle_until),
+        ] {
+            finite(&format!("state.metrics.{field}"), x)?;
+        }
+        self.block.validate("state.metrics.block")?;
+        self.steady.validate("state.metrics.steady")?;
+        self.run.validate("state.metrics.run")?;
+        self.all.validate("state.metrics.all")
+    }
+
     /// Starts a block sequence at `origin` with blocks of `block_len` s and a transient of `settle` s.
     pub fn new(origin: f64, block_len: f64, settle: f64) -> Self {
         Self {

@@ -561,7 +561,18 @@ impl Plant {
         crate::error::finite("state.t0", state.t0)?;
         crate::error::finite("state.pending_work", state.pending_work)?;
         crate::error::finite("state.velocity_sum", state.velocity_sum)?;
+        crate::error::finite("state.outputs.mean_speed", state.outputs.mean_speed)?;
+        crate::error::finite("state.outputs.input_power", state.outputs.input_power)?;
+        crate::error::non_negative("state.outputs.max_stress", state.outputs.max_stress)?;
+        crate::error::non_negative(
+            "state.outputs.time_over_stress",
+            state.outputs.time_over_stress,
+        )?;
+        if let Some(limit) = state.stress_limit {
+            crate::error::positive("state.stress_limit", limit)?;
+        }
         state.events.validate(n)?;
+        state.metrics.validate()?;
         if state.step != state.macro_step.saturating_mul(self.disc.substeps) {
             return Err(ParamError::new(
                 "state.step",

@@ -65,6 +65,32 @@ pub struct TaskTracker {
 }
 
 impl TaskTracker {
+    /// Every number is one the tracker can have produced (a tracker read from a file): finite,
+    /// the largest stress `-inf` before the first step or >= 0.
+    pub fn validate(&self) -> Result<(), crate::error::ParamError> {
+        use crate::error::{finite, non_negative};
+        self.task.validate()?;
+        finite("task.start_position", self.start_position)?;
+        finite("task.start_time", self.start_time)?;
+        finite("task.distance", self.distance)?;
+        non_negative("task.energy", self.energy)?;
+        if self.max_stress != f64::NEG_INFINITY {
+            non_negative("task.max_stress", self.max_stress)?;
+        }
+        non_negative("task.time_over_stress", self.time_over_stress)?;
+        finite("task.time", self.time)?;
+        for (name, x) in [
+            ("task.reached_at", self.reached_at),
+            ("task.energy_at_distance", self.energy_at_distance),
+            ("task.exhausted_at", self.exhausted_at),
+        ] {
+            if let Some(x) = x {
+                finite(name, x)?;
+            }
+        }
+        Ok(())
+    }
+
     /// A tracker for `task` of a run starting at `time` with mean displacement `position`.
     pub fn new(task: Task, time: f64, position: f64) -> Self {
         Self {

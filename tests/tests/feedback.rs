@@ -43,7 +43,8 @@ impl Controller for StickReflex {
 #[test]
 fn the_python_reflex_controller_closes_the_loop_as_its_law_says() {
     let run = Run::new("pyreflex");
-    let plant = run.plant(&["--eps", "1", "--cells", "128", "--t-end", "2", "--json"]);
+    // the shortest run the scenario allows: the transient (5 s) and one forcing period
+    let plant = run.plant(&["--eps", "1", "--cells", "128", "--t-end", "5.2", "--json"]);
     let py = run.python_example(
         "python_reflex_controller.py",
         &["--f0", "0.2", "--alpha", "0.5", "--gain", "0.5"],
@@ -55,7 +56,7 @@ fn the_python_reflex_controller_closes_the_loop_as_its_law_says() {
     let mut sc = Scenario::paper();
     sc.plant.friction.eps = 1.0;
     sc.plant.numerics.cells = 128;
-    sc.t_end = 2.0;
+    sc.t_end = 5.2;
     let b = sc.plant.body;
     let length = sc.plant.length;
     let k = TAU / length;

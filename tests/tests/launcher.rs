@@ -274,3 +274,56 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
     );
     check("crawler-bridge", &["record", "--every", "0"], "--every");
 }
+
+#[test]
+fn a_run_id_in_use_is_refused_and_the_running_run_keeps_its_credential() {
+    let run = Run::new("dup");
+    let plant = |extra: &[&str]| {
+        let mut args: Vec<String> = vec!["run".into(), "--run-id".into(), run.id.clone()];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        Proc::spawn("plant", &bin("crawler-plant"), &args, run.dir.path())
+    };
+    let first = plant(&["--wait-timeout", "60"]);
+    let t0 = Instant::now();
+    while !first.stderr_so_far().contains("waiting for a controller") {
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "{}",
+            first.stderr_so_far()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let credential = first
+        .stderr_so_far()
+        .split("authenticated with the credential ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .map(std::path::PathBuf::from)
+        .expect("the plant names its credential");
+    let before = std::fs::read(&credential).unwrap();
+    for extra in [&["--wait-timeout", "5"][..], &["--check"][..]] {
+        let second = plant(extra).wait(Duration::from_secs(30));
+        assert_eq!(second.status.code(), Some(1), "{}", second.stderr);
+        assert!(
+            second.stderr.contains("--run-id") && second.stderr.contains("already in use"),
+            "{}",
+            second.stderr
+        );
+        assert!(!second.stderr.contains(".cargo"), "{}", second.stderr);
+    }
+    // the launcher refuses it before it creates anything
+    let mut child = launcher(&run, &["--out", "x.rrd"]);
+    assert_ne!(
+        wait_group(&run, &mut child, Duration::from_secs(60)),
+        Some(0)
+    );
+    let err = std::fs::read_to_string(run.path("launcher.err")).unwrap();
+    assert!(err.contains("already in use"), "{err}");
+    assert_eq!(
+        std::fs::read(&credential).unwrap(),
+        before,
+        "credential replaced"
+    );
+    first.signal("-INT");
+    first.wait(Duration::from_secs(30));
+}

@@ -94,6 +94,48 @@ pub fn ensure_run_dir(run_id: &str) -> anyhow::Result<PathBuf> {
     Ok(dir)
 }
 
+/// A run id held by the plant of a running run: an advisory lock on `<run dir>/plant.lock`. The
+/// operating system releases it when the holder exits, however it exits, so a run stopped by
+/// `kill -9` can be resumed under its id at once.
+#[derive(Debug)]
+pub struct RunClaim {
+    _file: std::fs::File,
+    path: PathBuf,
+}
+
+/// Claims run `run_id` for this process, or says that another plant runs it: two plants (or a
+/// launcher's credential) must never share a run's private directory.
+pub fn claim(run_id: &str) -> anyhow::Result<RunClaim> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let dir = ensure_run_dir(run_id)?;
+    let path = dir.join("plant.lock");
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .mode(0o600)
+        .open(&path)
+        .with_context(|| format!("cannot open the run's lock {}", path.display()))?;
+    match file.try_lock() {
+        Ok(()) => Ok(RunClaim { _file: file, path }),
+        Err(std::fs::TryLockError::WouldBlock) => bail!(
+            "invalid --run-id = {run_id}: already in use on this machine (a plant of that run is \
+             running and holds {}); allowed an id no running run has: choose another --run-id, \
+             or stop that run first",
+            path.display()
+        ),
+        Err(std::fs::TryLockError::Error(e)) => {
+            Err(e).with_context(|| format!("cannot lock {}", path.display()))
+        }
+    }
+}
+
+impl Drop for RunClaim {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -125,5 +167,21 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("not a directory"));
+    }
+
+    #[test]
+    fn a_run_id_is_held_by_one_plant_at_a_time() {
+        let id = format!("claim-test-{}", std::process::id());
+        let first = claim(&id).unwrap();
+        let e = claim(&id).unwrap_err().to_string();
+        assert!(
+            e.contains("--run-id") && e.contains("already in use"),
+            "{e}"
+        );
+        drop(first);
+        // released with its holder: the id can be claimed again (a resumed run)
+        let again = claim(&id).unwrap();
+        drop(again);
+        let _ = std::fs::remove_dir(run_dir(&id));
     }
 }
