@@ -17,16 +17,25 @@ same loopback-only zenoh session as python_controller.py (see there).
 
 import argparse
 import math
+import os
 import queue
 import secrets
 import sys
-import tempfile
 import threading
 
 import msgpack
 import zenoh
 
-from python_controller import PROTOCOL_VERSION, loopback_config, model_info
+from python_controller import (
+    PROTOCOL_VERSION,
+    Credential,
+    loopback_config,
+    model_info,
+    run_dir,
+    seal,
+    sealed,
+    wait_for,
+)
 
 
 def reflex_field(state, info, f0, k, omega, gain):
@@ -44,18 +53,29 @@ def reflex_field(state, info, f0, k, omega, gain):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--run-id", default="default")
-    ap.add_argument("--endpoint", help="the run's endpoint (default: unixsock-stream/<tmp>/crawler-<run-id>.sock)")
+    ap.add_argument("--endpoint", help="the run's endpoint (default: the unix socket in the run's private directory)")
+    ap.add_argument("--credential", help="the run's credential (default: in the run's private directory)")
+    ap.add_argument("--no-auth", action="store_true", help="join a plant started with --no-auth")
     ap.add_argument("--f0", type=float, default=0.2, help="wave amplitude, N")
     ap.add_argument("--alpha", type=float, default=0.5, help="omega / omega_n")
     ap.add_argument("--gain", type=float, default=0.5, help="stick reflex, a share of f0")
     ap.add_argument("--wait-timeout", type=float, default=60.0)
     args = ap.parse_args()
 
-    endpoint = args.endpoint or f"unixsock-stream/{tempfile.gettempdir()}/crawler-{args.run_id}.sock"
+    endpoint = args.endpoint or f"unixsock-stream/{run_dir(args.run_id)}/zenoh.sock"
     base = f"crawler/{args.run_id}"
     my_id = secrets.token_hex(8)
-    session = zenoh.open(loopback_config(endpoint))
-    info = model_info(session, base, args.wait_timeout)
+    key, password = None, None
+    if not args.no_auth:
+        # the run's credential, as in python_controller.py (docs/security.md)
+        path = args.credential or os.path.join(run_dir(args.run_id), "credential")
+        if not wait_for(path, args.wait_timeout):
+            print(f"python-reflex: no credential {path} (is the plant running?)", file=sys.stderr)
+            return 4
+        cred = Credential(path, args.run_id)
+        key, password = cred.message_key(), cred.transport_password()
+    session = zenoh.open(loopback_config(endpoint, password))
+    info = model_info(session, base, key, args.wait_timeout)
     if info is None:
         print("python-reflex: no plant answered", file=sys.stderr)
         return 4
@@ -65,9 +85,21 @@ def main():
     k = 2.0 * math.pi / info["length"]
     omega = args.alpha * (k * math.sqrt(info["area"] * info["youngs_modulus"] / info["density"]))
 
-    states = queue.Queue()
+    states = queue.Queue(maxsize=64)  # bounded: a flood is dropped, not queued
     plant_gone = threading.Event()
-    sub = session.declare_subscriber(f"{base}/state", lambda s: states.put(s.payload.to_bytes()))
+    max_state = 28 * info["cells"] + 512
+
+    def on_state(sample):
+        # size first, then the seal: only the run's plant can have sent it
+        if len(sample.payload) <= max_state:
+            payload = sealed(key, sample)
+            if payload is not None:
+                try:
+                    states.put_nowait(payload)
+                except queue.Full:
+                    pass
+
+    sub = session.declare_subscriber(f"{base}/state", on_state)
     live = session.liveliness().declare_subscriber(
         f"{base}/alive/plant/*", lambda s: plant_gone.set() if s.kind == zenoh.SampleKind.DELETE else None
     )
@@ -92,7 +124,11 @@ def main():
         if state.get("last"):
             break
         field = reflex_field(state, info, args.f0, k, omega, args.gain)
-        pub.put(msgpack.packb({"v": PROTOCOL_VERSION, "step": state["step"], "controller": my_id, "wave": None, "field": field}))
+        payload = msgpack.packb({"v": PROTOCOL_VERSION, "step": state["step"], "controller": my_id, "wave": None, "field": field})
+        if key is None:
+            pub.put(payload)
+        else:
+            pub.put(payload, attachment=seal(key, f"{base}/actuation", payload))
         answered += 1
 
     print(f"python-reflex: answered {answered} steps", file=sys.stderr)
