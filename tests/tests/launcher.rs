@@ -14,6 +14,8 @@ fn launcher(run: &Run, args: &[&str]) -> std::process::Child {
         .args(&args)
         .current_dir(run.dir.path())
         .env_remove("CARGO")
+        // the run's private directory where the test's other processes have it
+        .env("XDG_RUNTIME_DIR", run.dir.path())
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::piped())
         .stderr(std::fs::File::create(run.path("launcher.err")).unwrap())
