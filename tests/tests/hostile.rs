@@ -6,6 +6,7 @@
 //! - a process holding the credential that sends every kind of malformed or inconsistent
 //!   message: each is rejected and counted, never applied;
 //! - floods before and after the join: every process stays within its memory budget.
+//!
 //! Every attack leaves the run's result (its state digest) unchanged and every process within
 //! its memory budget.
 
@@ -736,7 +737,7 @@ fn flood(
                     key,
                     vec![0xc1; RunLimits::text_message() + 64],
                 );
-                if round % 10 == 0 {
+                if round.is_multiple_of(10) {
                     put(&session, seal.as_ref(), key, vec![0xc1; 50 << 20]);
                 }
                 sent += 1;
