@@ -345,6 +345,13 @@ fn run_one(
     row.recording = recording.display().to_string();
     if !Exit::Finished.is(ctl_code) {
         row.error = Some(format!("the controller ended with {ctl_code:?}"));
+    } else if Exit::Interrupted.is(bridge_code) {
+        // still writing a minute after the run ended: stopped, its recording closed properly
+        eprintln!(
+            "crawler: {} / {policy}: the recorder was still catching up 60 s after the run and was stopped; {} holds what it had written",
+            case.name,
+            recording.display()
+        );
     } else if !Exit::Finished.is(bridge_code) {
         row.error = Some(format!("the recorder ended with {bridge_code:?}"));
     }
