@@ -134,6 +134,24 @@ def wait_for(path, timeout):
     return True
 
 
+def state_inbox(session, base, key, cells):
+    """The plant's states, checked at arrival, in a bounded queue; and the subscriber filling it."""
+    states = queue.Queue(maxsize=64)  # bounded: a flood is dropped, not queued
+    max_state = 28 * cells + 512
+
+    def on_state(sample):
+        # size first, then the seal: only the run's plant can have sent it
+        if len(sample.payload) <= max_state:
+            payload = sealed(key, sample)
+            if payload is not None:
+                try:
+                    states.put_nowait(payload)
+                except queue.Full:
+                    pass
+
+    return states, session.declare_subscriber(f"{base}/state", on_state)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--run-id", default="default")
@@ -174,21 +192,8 @@ def main():
     wave = {"f0": args.f0, "k": k, "omega": omega, "phase": 0.0}
     print(f"python-controller: plant has {info['cells']} cells; wave {wave}", file=sys.stderr)
 
-    states = queue.Queue(maxsize=64)  # bounded: a flood is dropped, not queued
+    states, sub = state_inbox(session, base, key, info["cells"])
     plant_gone = threading.Event()
-    max_state = 28 * info["cells"] + 512
-
-    def on_state(sample):
-        # size first, then the seal: only the run's plant can have sent it
-        if len(sample.payload) <= max_state:
-            payload = sealed(key, sample)
-            if payload is not None:
-                try:
-                    states.put_nowait(payload)
-                except queue.Full:
-                    pass
-
-    sub = session.declare_subscriber(f"{base}/state", on_state)
     live = session.liveliness().declare_subscriber(
         f"{base}/alive/plant/*", lambda s: plant_gone.set() if s.kind == zenoh.SampleKind.DELETE else None
     )

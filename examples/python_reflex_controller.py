@@ -33,7 +33,7 @@ from python_controller import (
     model_info,
     run_dir,
     seal,
-    sealed,
+    state_inbox,
     wait_for,
 )
 
@@ -85,21 +85,8 @@ def main():
     k = 2.0 * math.pi / info["length"]
     omega = args.alpha * (k * math.sqrt(info["area"] * info["youngs_modulus"] / info["density"]))
 
-    states = queue.Queue(maxsize=64)  # bounded: a flood is dropped, not queued
+    states, sub = state_inbox(session, base, key, info["cells"])
     plant_gone = threading.Event()
-    max_state = 28 * info["cells"] + 512
-
-    def on_state(sample):
-        # size first, then the seal: only the run's plant can have sent it
-        if len(sample.payload) <= max_state:
-            payload = sealed(key, sample)
-            if payload is not None:
-                try:
-                    states.put_nowait(payload)
-                except queue.Full:
-                    pass
-
-    sub = session.declare_subscriber(f"{base}/state", on_state)
     live = session.liveliness().declare_subscriber(
         f"{base}/alive/plant/*", lambda s: plant_gone.set() if s.kind == zenoh.SampleKind.DELETE else None
     )
