@@ -101,7 +101,7 @@ fn main() -> anyhow::Result<()> {
             };
             r.handle(Incoming::Events(encode(&e)))?;
         }
-        r.pace(0, 0);
+        r.pace(0, Duration::ZERO, 0);
         r.maybe_flush();
         if n % (steps / 10).max(1) == 0 {
             println!(

@@ -109,9 +109,12 @@ fn main() -> ExitCode {
 }
 
 /// Where the callbacks put what passed the gates.
+/// A message of the inbox with the moment it arrived (the recorder's lag is measured from it).
+type Arrival = (Instant, Charged<Incoming>);
+
 #[derive(Clone)]
 struct Sink {
-    tx: Sender<Charged<Incoming>>,
+    tx: Sender<Arrival>,
     states: ByteBudget,
     others: ByteBudget,
     dropped: Arc<AtomicU64>,
@@ -140,7 +143,7 @@ fn subscribe(
             };
             let queued = budget
                 .charge(msg, len)
-                .is_some_and(|m| sink.tx.try_send(m).is_ok());
+                .is_some_and(|m| sink.tx.try_send((Instant::now(), m)).is_ok());
             if !queued {
                 sink.dropped.fetch_add(1, Ordering::Relaxed);
             }
@@ -434,7 +437,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     if credential.is_none() {
         eprintln!("crawler-bridge: warning: unauthenticated (--no-auth): the recording cannot tell the run's messages from anyone else's");
     }
-    let (tx, rx) = bounded::<Charged<Incoming>>(a.inbox);
+    let (tx, rx) = bounded::<Arrival>(a.inbox);
     let dropped = Arc::new(AtomicU64::new(0));
     let sink = Sink {
         tx,
@@ -497,6 +500,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     let mut next_query = Instant::now();
     let mut last_message = Instant::now();
     let mut viewer_warned = false;
+    let mut lag = Duration::ZERO;
     let interrupted = loop {
         crossbeam_channel::select! {
             recv(stop_rx) -> _ => break true,
@@ -506,10 +510,11 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 }
             },
             recv(rx) -> msg => {
-                if let Ok(msg) = msg {
+                if let Ok((arrived, msg)) = msg {
                     let (msg, _charge) = msg.split();
                     recorder.handle(msg)?;
                     last_message = Instant::now();
+                    lag = arrived.elapsed();
                 }
             },
             default(Duration::from_millis(100)) => {},
@@ -527,7 +532,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 );
             }
         }
-        recorder.pace(rx.len(), dropped.load(Ordering::Relaxed));
+        recorder.pace(rx.len(), lag, dropped.load(Ordering::Relaxed));
         recorder.maybe_flush();
         if recorder.finished() && rx.is_empty() {
             break false;
@@ -586,7 +591,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         }
     };
     // Drain what already arrived, then finish the file properly.
-    while let Ok(msg) = rx.try_recv() {
+    while let Ok((_, msg)) = rx.try_recv() {
         recorder.handle(msg.split().0)?;
     }
     recorder.refused_at_arrival(refused.oversize(), refused.unsealed());

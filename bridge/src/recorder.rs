@@ -34,6 +34,9 @@ pub enum Incoming {
     PlantUp(String),
 }
 
+/// Longest a state may wait in the inbox before the recorder decimates the fields it records.
+pub const LAG_LIMIT: Duration = Duration::from_millis(100);
+
 /// Recorder settings.
 #[derive(Debug, Clone, Copy)]
 pub struct RecorderOptions {
@@ -53,7 +56,7 @@ impl Default for RecorderOptions {
             every: 1,
             lanes: 64,
             heatmap_rows: 128,
-            flush_every: Duration::from_millis(500),
+            flush_every: Duration::from_millis(200),
         }
     }
 }
@@ -103,6 +106,8 @@ pub struct Recorder {
     settled: bool,
     counts: Counts,
     last_flush: Instant,
+    /// When the decimation last changed.
+    last_pace_change: Instant,
     finished: bool,
     length: f64,
     plant_id: Option<String>,
@@ -182,6 +187,7 @@ impl Recorder {
             settled: false,
             counts: Counts::default(),
             last_flush: Instant::now(),
+            last_pace_change: Instant::now(),
             finished: false,
             length: 1.0,
             plant_id: None,
@@ -417,9 +423,15 @@ impl Recorder {
         Ok(())
     }
 
-    /// Adjusts decimation to the backlog of the inbox (`backlog` messages waiting) and records
-    /// `dropped` messages lost by the callbacks so far.
-    pub fn pace(&mut self, backlog: usize, dropped: u64) {
+    /// Adjusts decimation to how far the writer is behind (`backlog` messages waiting in the
+    /// inbox; `lag`, how long the message just recorded waited there) and records `dropped`
+    /// messages lost by the callbacks so far.
+    ///
+    /// What `kill -9` loses is the lag plus the flush interval, so the lag is kept under
+    /// [`LAG_LIMIT`]: the fields are decimated (never the metrics, events or lanes) until the
+    /// writer keeps up. Decimation changes at most once per [`LAG_LIMIT`], so it follows the
+    /// load instead of jumping to its maximum on one slow burst.
+    pub fn pace(&mut self, backlog: usize, lag: Duration, dropped: u64) {
         if dropped > self.counts.dropped {
             self.note(
                 format!(
@@ -431,12 +443,18 @@ impl Recorder {
             self.counts.dropped = dropped;
         }
         let before = self.every;
-        if backlog > 256 && self.every < 1024 {
+        if self.last_pace_change.elapsed() < LAG_LIMIT {
+            return;
+        }
+        let behind = backlog > 256 || lag > LAG_LIMIT;
+        let caught_up = backlog < 16 && lag < LAG_LIMIT / 4;
+        if behind && self.every < 1024 {
             self.every *= 2;
-        } else if backlog < 16 && self.every > self.opts.every.max(1) {
+        } else if caught_up && self.every > self.opts.every.max(1) {
             self.every = (self.every / 2).max(self.opts.every.max(1));
         }
         if self.every != before {
+            self.last_pace_change = Instant::now();
             let level = if self.every > before {
                 rerun::TextLogLevel::WARN
             } else {
@@ -847,4 +865,53 @@ impl Recorder {
 
 fn opt(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{v:.4e}"))
+}
+
+#[cfg(test)]
+mod pacing {
+    use super::*;
+
+    fn recorder(every: u64) -> Recorder {
+        let (rec, _storage) = rerun::RecordingStreamBuilder::new("pacing")
+            .memory()
+            .expect("memory recording");
+        Recorder::new(
+            rec,
+            RecorderOptions {
+                every,
+                ..Default::default()
+            },
+        )
+        .expect("recorder")
+    }
+
+    /// Waits past the pacing interval, so the next call may change the decimation.
+    fn tick() {
+        std::thread::sleep(LAG_LIMIT + Duration::from_millis(5));
+    }
+
+    #[test]
+    fn a_lagging_writer_decimates_once_per_interval_and_returns_to_the_request() {
+        let mut r = recorder(2);
+        tick();
+        // a short inbox but states that waited too long: behind
+        r.pace(3, LAG_LIMIT * 2, 0);
+        assert_eq!(r.every, 4);
+        // at most one change per interval, however long the lag
+        r.pace(3, LAG_LIMIT * 10, 0);
+        assert_eq!(r.every, 4);
+        tick();
+        r.pace(1000, Duration::ZERO, 0);
+        assert_eq!(r.every, 8, "a long backlog is behind too");
+        // a lag between a quarter and the whole limit changes nothing
+        tick();
+        r.pace(0, LAG_LIMIT / 2, 0);
+        assert_eq!(r.every, 8);
+        // caught up: halves back, never below the requested decimation
+        for expected in [4, 2, 2] {
+            tick();
+            r.pace(0, Duration::ZERO, 0);
+            assert_eq!(r.every, expected);
+        }
+    }
 }

@@ -162,6 +162,7 @@ fn interrupted_recording(signal: &str) {
     let last = *tail.steps.last().unwrap() as u64;
     assert!(tail.steps.windows(2).all(|w| w[1] > w[0]));
     let lost = at_kill.saturating_sub(last) as f64 / rate;
+    eprintln!("{signal}: {lost:.3} s lost at {rate:.0} steps/s");
     assert!(
         lost <= 1.0,
         "{signal}: last recorded step {last}, {at_kill} at the kill: {lost:.2} s lost"
