@@ -91,10 +91,20 @@ fn tree() -> Node {
                         view("BarChart", "v(x) [m/s]", paths::FIELD_V),
                     ],
                 ),
-                view(
-                    "Tensor",
-                    "u(x, t) - mean u: space-time heatmap",
-                    paths::HEATMAP,
+                container(
+                    ContainerKind::Tabs,
+                    vec![
+                        view(
+                            "Tensor",
+                            "u(x, t) - mean u: space-time heatmap",
+                            paths::HEATMAP,
+                        ),
+                        view(
+                            "2D",
+                            "Pipe: eps(X) orange, n_F(X) green, nodes on eps(X) (stick red, slip blue); X [m]",
+                            paths::PIPE,
+                        ),
+                    ],
                 ),
             ],
         ),
@@ -117,6 +127,11 @@ fn tree() -> Node {
                 "TimeSeries",
                 "Tail u(0, t): plant vs paper mu0 + eps mu1 [m]",
                 paths::TAIL,
+            ),
+            view(
+                "TimeSeries",
+                "eps of the pipe under the centre of mass",
+                paths::PIPE_CENTRE_EPS,
             ),
         ],
     );

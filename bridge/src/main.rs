@@ -14,7 +14,7 @@ use crawler_bridge::output::Output;
 use crawler_bridge::viewer::{self, Link, Viewer};
 use crawler_bridge::{Incoming, Recorder, RecorderOptions};
 use crawler_cli::Exit;
-use crawler_protocol::{decode, ModelInfo, Role, RunKeys, RunLimits};
+use crawler_protocol::{decode, Environment, Message, ModelInfo, Role, RunKeys, RunLimits};
 use crawler_transport::budget::{ByteBudget, Charged};
 use crawler_transport::gate::{Gate, Refused};
 use crawler_transport::{Credential, Network, Seal};
@@ -262,9 +262,27 @@ impl Connection {
 
     /// The plant's model description, if it answers (sealed) within 200 ms.
     fn query_model(&self, keys: &RunKeys, refused: &Arc<Refused>) -> Option<ModelInfo> {
+        self.query(keys.model(), refused, |info: &ModelInfo| {
+            info.run == keys.run()
+        })
+    }
+
+    fn query_environment(&self, keys: &RunKeys, refused: &Arc<Refused>) -> Option<Environment> {
+        self.query(keys.environment(), refused, |e: &Environment| {
+            e.run == keys.run()
+        })
+    }
+
+    /// The plant's answer on the queryable `key`, decoded, validated and of this run (`ours`).
+    fn query<M: Message>(
+        &self,
+        key: String,
+        refused: &Arc<Refused>,
+        ours: impl Fn(&M) -> bool,
+    ) -> Option<M> {
         let replies = self
             .session
-            .get(keys.model())
+            .get(key)
             .timeout(Duration::from_millis(200))
             .wait()
             .ok()?;
@@ -277,9 +295,9 @@ impl Connection {
         while let Ok(reply) = replies.recv() {
             if let Ok(sample) = reply.result() {
                 if let Ok(bytes) = gate.admit(sample) {
-                    if let Ok(info) = decode::<ModelInfo>(&bytes) {
-                        if info.run == keys.run() {
-                            found = Some(info);
+                    if let Ok(m) = decode::<M>(&bytes) {
+                        if ours(&m) {
+                            found = Some(m);
                         }
                     }
                 }
@@ -566,6 +584,10 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 conn.state_gate.set_limit(limits.state());
                 recorder.set_model(&info)?;
                 model_known = true;
+                // the pipe as the plant resolved it (a plant that does not answer: no map drawn)
+                if let Some(env) = conn.query_environment(&keys, &refused) {
+                    recorder.set_environment(env)?;
+                }
                 // Our subscriptions reached the plant before this reply did (same link,
                 // in order): from here on nothing the plant publishes is missed.
                 eprintln!(

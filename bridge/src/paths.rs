@@ -15,6 +15,17 @@ pub const FIELD_U: &str = "fields/u";
 pub const FIELD_V: &str = "fields/v";
 /// Space-time heatmap of `u - mean u`: blocks of rows (time) by nodes.
 pub const HEATMAP: &str = "heatmap/u";
+/// The pipe: friction along it against the world position X = start + x + u (m), with the
+/// body's nodes on it.
+pub const PIPE: &str = "pipe";
+/// eps(X): a step line over the pipe (static), drawn at y = -eps (a 2D view's y points down).
+pub const PIPE_EPS: &str = "pipe/eps";
+/// n_F(X): a step line over the pipe (static), at y = -n_F.
+pub const PIPE_N_F: &str = "pipe/n_f";
+/// The body's nodes at (X, -eps(X)), classed stick / slip, each recorded step.
+pub const PIPE_BODY: &str = "pipe/body";
+/// eps under the body's centre of mass, each state.
+pub const PIPE_CENTRE_EPS: &str = "pipe/centre_eps";
 /// Stick/slip lanes, one entity per recorded node: `lanes/node_0017`.
 pub const LANES: &str = "lanes";
 /// Tail displacement: `tail/plant`, `tail/paper`.

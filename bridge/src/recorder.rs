@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use rerun::RecordingStream;
 
 use crawler_protocol::{
-    decode, Events, Metrics, ModelPrediction, Prediction, Series, State, Status,
+    decode, Environment, Events, Metrics, ModelPrediction, Prediction, Series, State, Status,
 };
 
 use crate::checks::{self, RunFacts};
@@ -118,6 +118,8 @@ pub struct Recorder {
     early: Vec<Incoming>,
     controller_id: Option<String>,
     invalid_by_kind: BTreeMap<&'static str, u64>,
+    /// The pipe, once the plant answered it.
+    environment: Option<Environment>,
     /// Step of the plant's last state (last: true), once it came: the run's last step.
     plant_last_state: Option<u64>,
     /// The plant's `finished` statuses for a step before the model's last that came before any
@@ -198,6 +200,7 @@ impl Recorder {
             early: Vec::new(),
             controller_id: None,
             invalid_by_kind: BTreeMap::new(),
+            environment: None,
             plant_last_state: None,
             held_finished: BTreeMap::new(),
         };
@@ -242,6 +245,61 @@ impl Recorder {
         for msg in std::mem::take(&mut self.early) {
             self.handle(msg)?;
         }
+        Ok(())
+    }
+
+    /// Draws the pipe the plant resolved: eps(X) and n_F(X) as static step lines from a body
+    /// length behind the tail's start to a body length past the last change (at least two body
+    /// lengths ahead), and from now on the body's nodes on eps(X) at every recorded step.
+    pub fn set_environment(&mut self, env: Environment) -> anyhow::Result<()> {
+        let length = self.length;
+        let first = env.piece_start.first().copied().unwrap_or(env.start);
+        let last = env.piece_start.last().copied().unwrap_or(env.start);
+        let (lo, hi) = (
+            first.min(env.start) - length,
+            (last + length).max(env.start + 3.0 * length),
+        );
+        // a 2D view's y axis points down: values are drawn at y = -value, so up is larger
+        let steps = |uniform: f64, values: &[f64]| -> Vec<[f32; 2]> {
+            let mut line = vec![[lo as f32, -uniform as f32]];
+            let mut level = uniform;
+            for (&x, &v) in env.piece_start.iter().zip(values) {
+                line.push([x as f32, -level as f32]);
+                line.push([x as f32, -v as f32]);
+                level = v;
+            }
+            line.push([hi as f32, -level as f32]);
+            line
+        };
+        self.rec.log_static(
+            paths::PIPE_EPS,
+            &rerun::LineStrips2D::new([steps(env.eps, &env.piece_eps)])
+                .with_colors([rerun::Color::from_rgb(230, 160, 40)])
+                .with_labels(["eps(X)"]),
+        )?;
+        self.rec.log_static(
+            paths::PIPE_N_F,
+            &rerun::LineStrips2D::new([steps(env.n_f, &env.piece_n_f)])
+                .with_colors([rerun::Color::from_rgb(40, 150, 60)])
+                .with_labels(["n_F(X)"]),
+        )?;
+        let exact = if env.merged == 1 {
+            "exactly".to_string()
+        } else {
+            format!("merged, {} of its pieces per piece drawn", env.merged)
+        };
+        let (e, n) = (&env.piece_eps, &env.piece_n_f);
+        let range = |u: f64, v: &[f64]| v.iter().fold((u, u), |(a, b), &x| (a.min(x), b.max(x)));
+        let ((e0, e1), (n0, n1)) = (range(env.eps, e), range(env.n_f, n));
+        self.note(
+            format!(
+                "pipe as the plant resolved it ({exact}): {} pieces, eps in [{e0}, {e1}], n_F in [{n0}, {n1}], tail starts at X = {} m",
+                env.piece_start.len(),
+                env.start
+            ),
+            rerun::TextLogLevel::INFO,
+        );
+        self.environment = Some(env);
         Ok(())
     }
 
@@ -295,13 +353,15 @@ impl Recorder {
 
     fn log_static(&self) -> anyhow::Result<()> {
         let rec = &self.rec;
-        rec.log_static(
-            paths::BODY,
-            &rerun::AnnotationContext::new([
-                (0, "slip", rerun::Rgba32::from_rgb(60, 120, 230)),
-                (1, "stick", rerun::Rgba32::from_rgb(220, 50, 40)),
-            ]),
-        )?;
+        for root in [paths::BODY, paths::PIPE] {
+            rec.log_static(
+                root,
+                &rerun::AnnotationContext::new([
+                    (0, "slip", rerun::Rgba32::from_rgb(60, 120, 230)),
+                    (1, "stick", rerun::Rgba32::from_rgb(220, 50, 40)),
+                ]),
+            )?;
+        }
         let colors = [
             ("plant", [235, 235, 235]), // the dark theme's foreground: the truth, drawn widest
             ("paper", [230, 120, 20]),
@@ -575,7 +635,9 @@ impl Recorder {
             format!("{}/mean_speed", paths::STEP),
             &rerun::Scalars::single(s.mean_speed),
         )?;
-        if !s.step.is_multiple_of(self.every) && !s.last {
+        let recorded = s.step.is_multiple_of(self.every) || s.last;
+        self.log_pipe(s, recorded)?;
+        if !recorded {
             return Ok(());
         }
         self.counts.recorded_steps += 1;
@@ -645,6 +707,43 @@ impl Recorder {
             &rerun::Tensor::new(data).with_dim_names(["time (recorded steps)", "node"]),
         )?;
         self.heat_rows = 0;
+        Ok(())
+    }
+
+    /// The friction under the body: eps at the centre of mass every state, the nodes on eps(X)
+    /// at recorded steps. Nothing without an environment.
+    fn log_pipe(&mut self, s: &State, recorded: bool) -> anyhow::Result<()> {
+        let Some(env) = &self.environment else {
+            return Ok(());
+        };
+        let n = s.u.len();
+        let dx = self.length / n as f64;
+        let world = |i: usize| env.start + i as f64 * dx + s.u[i];
+        let centre = env.start + 0.5 * self.length - 0.5 * dx + s.u.iter().sum::<f64>() / n as f64;
+        let centre_eps = env.at(centre).0;
+        if !recorded {
+            return self
+                .rec
+                .log(paths::PIPE_CENTRE_EPS, &rerun::Scalars::single(centre_eps))
+                .map_err(Into::into);
+        }
+        let points: Vec<[f32; 2]> = (0..n)
+            .map(|i| {
+                let x = world(i);
+                [x as f32, -env.at(x).0 as f32]
+            })
+            .collect();
+        let classes: Vec<u16> = s.stuck.iter().map(|&st| u16::from(st)).collect();
+        // the pipe is many body lengths long: points of a fixed size on screen
+        let radius = [rerun::Radius::new_ui_points(2.5)];
+        self.rec
+            .log(paths::PIPE_CENTRE_EPS, &rerun::Scalars::single(centre_eps))?;
+        self.rec.log(
+            paths::PIPE_BODY,
+            &rerun::Points2D::new(points)
+                .with_class_ids(classes)
+                .with_radii(radius),
+        )?;
         Ok(())
     }
 

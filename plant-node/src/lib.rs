@@ -13,6 +13,7 @@
 //! - [`runner`]: the lockstep state machine on the plant's fixed-step clock, over an inbox and an
 //!   outbox (the link, or channels in tests);
 //! - [`checkpoint`]: a stopped run (plant state, scenario, bookkeeping), resumed bit-identically;
+//! - [`environment`]: the pipe's friction as the plant resolved it, answered to the recorder;
 //! - [`bench`]: cell updates per second of the stepping loop (`crawler-plant bench`);
 //! - [`preflight`]: what a run costs and where it really ends, said before it starts.
 
@@ -20,6 +21,7 @@ pub mod access;
 pub mod admission;
 pub mod bench;
 pub mod checkpoint;
+pub mod environment;
 pub mod link;
 pub mod preflight;
 pub mod runner;

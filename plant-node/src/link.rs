@@ -11,7 +11,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 use zenoh::Wait;
 
-use crawler_protocol::{encode, ModelInfo, Role, RunKeys, RunLimits};
+use crawler_protocol::{encode, Environment, ModelInfo, Role, RunKeys, RunLimits};
 use crawler_transport::budget::{ByteBudget, Charged};
 use crawler_transport::gate::{self, Gate, Refused};
 use crawler_transport::{Access, Network, Seal};
@@ -128,6 +128,7 @@ pub struct Link {
     _actuation: zenoh::pubsub::Subscriber<()>,
     _controllers: zenoh::pubsub::Subscriber<()>,
     _model: zenoh::query::Queryable<()>,
+    _environment: zenoh::query::Queryable<()>,
 }
 
 impl Link {
@@ -139,7 +140,7 @@ impl Link {
     pub fn open(
         network: &Network,
         id: &str,
-        info: ModelInfo,
+        (info, environment): (ModelInfo, Environment),
         (access, seal): (&Access, Option<Seal>),
         control_tx: Sender<Control>,
         control_rx: Receiver<Control>,
@@ -197,20 +198,13 @@ impl Link {
             })
             .wait()
             .map_err(z)?;
-        let info_bytes = encode(&info);
-        let model_key = keys.model();
-        let info_seal = gate::attachment(seal.as_ref(), &model_key, &info_bytes);
-        let model = session
-            .declare_queryable(keys.model())
-            .callback(move |query| {
-                let reply = query.reply(model_key.as_str(), info_bytes.clone());
-                let _ = match &info_seal {
-                    Some(a) => reply.attachment(a.clone()).wait(),
-                    None => reply.wait(),
-                };
-            })
-            .wait()
-            .map_err(z)?;
+        let model = answer(&session, keys.model(), encode(&info), seal.as_ref())?;
+        let environment = answer(
+            &session,
+            keys.environment(),
+            encode(&environment),
+            seal.as_ref(),
+        )?;
         let token = session
             .liveliness()
             .declare_token(keys.alive(Role::Plant, id))
@@ -227,6 +221,7 @@ impl Link {
             _actuation: actuation,
             _controllers: controllers,
             _model: model,
+            _environment: environment,
         };
         Ok((link, inbox))
     }
@@ -235,6 +230,27 @@ impl Link {
     pub fn close(self) {
         let _ = self.session.close().wait();
     }
+}
+
+/// A queryable on `key` answering `bytes` (sealed when the run is authenticated).
+fn answer(
+    session: &zenoh::Session,
+    key: String,
+    bytes: Vec<u8>,
+    seal: Option<&Seal>,
+) -> anyhow::Result<zenoh::query::Queryable<()>> {
+    let attachment = gate::attachment(seal, &key, &bytes);
+    session
+        .declare_queryable(key.clone())
+        .callback(move |query| {
+            let reply = query.reply(key.as_str(), bytes.clone());
+            let _ = match &attachment {
+                Some(a) => reply.attachment(a.clone()).wait(),
+                None => reply.wait(),
+            };
+        })
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))
 }
 
 impl Outbox for Link {

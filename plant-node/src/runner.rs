@@ -24,8 +24,8 @@ use crawler_plant::simulate::{mean_position, report_with_task, EpisodeLog, Repor
 use crawler_plant::slave::{Slave, StepStatus};
 use crawler_plant::task::TaskTracker;
 use crawler_protocol::{
-    encode, EpisodeMsg, Events, Metrics as MetricsMsg, ModelInfo, Rejections, Role, RunLimits,
-    State, Status, PROTOCOL_VERSION,
+    encode, Environment, EpisodeMsg, Events, Metrics as MetricsMsg, ModelInfo, Rejections, Role,
+    RunLimits, State, Status, PROTOCOL_VERSION,
 };
 use crawler_transport::Network;
 
@@ -86,6 +86,7 @@ pub fn run(
     let id = crawler_transport::process_id();
     let mut runner = Runner::new(opts, id.clone())?;
     let info = runner.model_info();
+    let environment = runner.environment();
     // Created before the session, removed (the credential and zenoh's user file, if the plant
     // made them) when it is dropped, after the session closed.
     let access = PlantAccess::prepare(&runner.opts.network)?;
@@ -105,7 +106,7 @@ pub fn run(
     let (link, inbox) = Link::open(
         &runner.opts.network,
         &id,
-        info,
+        (info, environment),
         (&access.access, access.seal.clone()),
         control_tx,
         control_rx,
@@ -211,6 +212,13 @@ impl Runner {
             boundary: p.boundary.as_str().to_string(),
             disclosed: p.pipe.disclose,
         }
+    }
+
+    /// The pipe's true friction, answered to the recorder's `environment` queries (whatever
+    /// controllers are told).
+    pub fn environment(&self) -> Environment {
+        let p = &self.scenario.plant;
+        crate::environment::environment(self.run_id(), p.pipe.start, &p.friction_map())
     }
 
     fn plant(&self) -> &Plant {

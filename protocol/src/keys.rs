@@ -112,6 +112,12 @@ impl RunKeys {
         self.key("model")
     }
 
+    /// Queryable of the plant, for the recorder: [`crate::Environment`], the pipe's friction as
+    /// the plant resolved it (also when controllers are not told it).
+    pub fn environment(&self) -> String {
+        self.key("environment")
+    }
+
     /// Liveliness token of one process of `role`, identified by `id`.
     pub fn alive(&self, role: Role, id: &str) -> String {
         self.key(&format!("alive/{}/{id}", role.as_str()))

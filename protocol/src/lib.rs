@@ -10,11 +10,13 @@
 //! - [`messages::decode`] bounds the size, checks the version and validates every field, so a
 //!   decoded message never carries NaN, an infinite value or an inconsistent size.
 
+pub mod environment;
 pub mod error;
 pub mod keys;
 pub mod limits;
 pub mod messages;
 
+pub use environment::{Environment, MAX_ENVIRONMENT_PIECES};
 pub use error::ProtocolError;
 pub use keys::{validate_run_id, Role, RunKeys};
 pub use limits::RunLimits;

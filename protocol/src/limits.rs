@@ -54,6 +54,12 @@ impl RunLimits {
         2 * MAX_TEXT_LEN + 4 * HEADER
     }
 
+    /// An `Environment` (the pipe map), whatever N: [`crate::MAX_ENVIRONMENT_PIECES`] pieces of
+    /// three float64 at most.
+    pub fn environment() -> usize {
+        27 * crate::environment::MAX_ENVIRONMENT_PIECES + HEADER
+    }
+
     /// A `Metrics` message (fixed size).
     pub fn metrics() -> usize {
         HEADER + 256
@@ -66,6 +72,7 @@ impl RunLimits {
             .max(self.actuation())
             .max(self.events())
             .max(Self::text_message())
+            .max(Self::environment())
     }
 
     /// The largest legal message on any key before the run's size is known: what a client's
@@ -158,6 +165,23 @@ mod tests {
             summary: Some("s".repeat(MAX_TEXT_LEN)),
         };
         assert!(encode(&status).len() <= RunLimits::text_message());
+        let n = crate::MAX_ENVIRONMENT_PIECES;
+        let big = -1.234_567_890_123_456_7e300;
+        let env = crate::Environment {
+            v: u16::MAX,
+            run: id(),
+            start: big,
+            eps: big,
+            n_f: big,
+            piece_start: vec![big; n],
+            piece_eps: vec![big; n],
+            piece_n_f: vec![big; n],
+            merged: u64::MAX,
+        };
+        let e = encode(&env).len();
+        assert!(e <= RunLimits::environment(), "environment {e}");
+        // every client session, even the first one, reassembles the largest map
+        assert!(RunLimits::environment() <= RunLimits::before_model());
         let m = Metrics {
             v: u16::MAX,
             step: u64::MAX,

@@ -63,7 +63,7 @@ pub fn decode<M: Message>(bytes: &[u8]) -> Result<M, ProtocolError> {
     Ok(m)
 }
 
-fn finite(field: &str, x: f64) -> Result<(), ProtocolError> {
+pub(crate) fn finite(field: &str, x: f64) -> Result<(), ProtocolError> {
     if x.is_finite() {
         Ok(())
     } else {
@@ -71,7 +71,7 @@ fn finite(field: &str, x: f64) -> Result<(), ProtocolError> {
     }
 }
 
-fn finite_all(field: &str, xs: &[f64]) -> Result<(), ProtocolError> {
+pub(crate) fn finite_all(field: &str, xs: &[f64]) -> Result<(), ProtocolError> {
     match xs.iter().position(|x| !x.is_finite()) {
         Some(i) => Err(ProtocolError::invalid(
             format!("{field}[{i}]"),
@@ -94,7 +94,7 @@ fn cells(field: &str, n: usize) -> Result<(), ProtocolError> {
     }
 }
 
-fn short(field: &str, s: &str) -> Result<(), ProtocolError> {
+pub(crate) fn short(field: &str, s: &str) -> Result<(), ProtocolError> {
     if s.len() <= MAX_ID_LEN {
         Ok(())
     } else {

@@ -404,6 +404,9 @@ pub struct Entity {
     pub steps: Vec<i64>,
     /// Scalar values (Scalars archetype), in row order.
     pub scalars: Vec<f64>,
+    /// Line strips (LineStrips2D archetype) of every row, static ones included: each row's
+    /// strips, each strip its points.
+    pub strips: Vec<Vec<Vec<[f32; 2]>>>,
 }
 
 impl Recording {
@@ -427,6 +430,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
         &mut std::io::BufReader::new(file),
     )?;
     let scalars = rerun::Scalars::descriptor_scalars().component;
+    let strips = rerun::LineStrips2D::descriptor_strips().component;
     let mut rec = Recording::default();
     for (id, store) in &stores {
         if id.kind() != rerun::StoreKind::Recording {
@@ -436,6 +440,13 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             let path = chunk.entity_path().to_string();
             let path = path.trim_start_matches('/').to_string();
             let e = rec.entities.entry(path).or_default();
+            for row in chunk.iter_component::<rerun::components::LineStrip2D>(strips) {
+                e.strips.push(
+                    row.iter()
+                        .map(|strip| strip.0.iter().map(|p| [p.x(), p.y()]).collect())
+                        .collect(),
+                );
+            }
             let Some(steps) = chunk.timelines().get(&rerun::TimelineName::from("step")) else {
                 continue;
             };

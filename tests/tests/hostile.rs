@@ -363,6 +363,7 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         keys.status(Role::Controller),
         keys.status(Role::Bridge),
         keys.model(),
+        keys.environment(),
     ];
     let kinds = payloads(&me);
     assert!(kinds.len() >= 20);
@@ -513,6 +514,7 @@ fn an_unauthenticated_session_reaches_nothing_on_any_key() {
         keys.status(Role::Controller),
         keys.status(Role::Bridge),
         keys.model(),
+        keys.environment(),
     ];
     for _ in 0..2 {
         for (_, bytes) in &kinds {
@@ -523,15 +525,17 @@ fn an_unauthenticated_session_reaches_nothing_on_any_key() {
         for st in [status("x", "finished", 6000), status("x", "failed", 10)] {
             block(&session, None, &keys.status(Role::Plant), encode(&st));
         }
-        let replies = session
-            .get(keys.model())
-            .timeout(Duration::from_millis(300))
-            .wait()
-            .unwrap();
-        assert!(
-            replies.recv().is_err(),
-            "the plant answered an unauthenticated query"
-        );
+        for key in [keys.model(), keys.environment()] {
+            let replies = session
+                .get(&key)
+                .timeout(Duration::from_millis(300))
+                .wait()
+                .unwrap();
+            assert!(
+                replies.recv().is_err(),
+                "the plant answered an unauthenticated query on {key}"
+            );
+        }
     }
     assert!(
         session.info().routers_zid().wait().next().is_none()

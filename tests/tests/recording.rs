@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use zenoh::Wait;
 
-use crawler_e2e::{json, read_recording, simulate, Run};
+use crawler_e2e::{json, read_recording, repo_root, simulate, Run};
 use crawler_protocol::{decode, RunKeys, State};
 
 const PLANT: &[&str] = &["--eps", "1", "--t-end", "8", "--json"];
@@ -182,4 +182,83 @@ fn sigterm_finishes_the_recording_properly() {
 #[test]
 fn kill_9_leaves_a_readable_recording_and_the_run_goes_on() {
     interrupted_recording("-9");
+}
+
+/// The pipe of `scenarios/patchy-pipe.toml` as a step line: eps 0.1, and 0.8 on the ten
+/// patches [0.5 + 0.5 j, 0.75 + 0.5 j), written from the scenario file's numbers, not from any
+/// code of the project.
+fn patchy_pipe_eps(x: f64) -> f64 {
+    let on_patch = (0..10).any(|j| {
+        let from = 0.5 + 0.5 * j as f64;
+        (from..from + 0.25).contains(&x)
+    });
+    if on_patch {
+        0.8
+    } else {
+        0.1
+    }
+}
+
+#[test]
+fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not_told() {
+    let run = Run::new("pipe");
+    let rrd = run.path("pipe.rrd");
+    let scenario = repo_root().join("scenarios/patchy-pipe.toml");
+    let scenario = scenario.to_str().unwrap();
+    // a short run on a coarse grid, the body's centre starting at X = 0.5 m, a patch's edge
+    let plant = run.plant(&["--scenario", scenario, "--cells", "64", "--t-end", "6"]);
+    let bridge = run.bridge(&rrd, &[]);
+    let controller = run.controller(&["--policy", "wave", "--f0", "1.0", "--alpha", "1.0"]);
+    let p = plant.wait(Duration::from_secs(120));
+    assert!(p.status.success(), "{}", p.stderr);
+    assert!(controller.wait(Duration::from_secs(30)).status.success());
+    let b = bridge.wait(Duration::from_secs(60));
+    assert!(b.status.success(), "{}", b.stderr);
+    let rec = read_recording(&rrd).unwrap();
+
+    // the map: a step line equal to the scenario's patches, though the plant told controllers
+    // only eps = 0.1 (disclose = false)
+    let strips = &rec.entity("pipe/eps").strips;
+    assert_eq!(strips.len(), 1, "one static row");
+    let line = &strips[0][0];
+    let xs: Vec<f64> = line.iter().map(|p| p[0] as f64).collect();
+    assert!(xs.windows(2).all(|w| w[1] >= w[0]), "X never decreases");
+    assert!(xs[0] <= -0.9 && *xs.last().unwrap() >= 5.25, "{xs:?}");
+    // every horizontal run of the line lies at the scenario's eps over its whole span
+    for w in line.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if a[0] < b[0] {
+            assert_eq!(a[1], b[1], "a horizontal run between {a:?} and {b:?}");
+            for t in [0.01, 0.5, 0.99] {
+                let x = a[0] as f64 + t * (b[0] - a[0]) as f64;
+                // drawn at y = -eps: up is more friction in the viewer
+                assert_eq!(-a[1], patchy_pipe_eps(x) as f32, "eps at X = {x}");
+            }
+        }
+    }
+    // the edges are exactly the patches' edges
+    let edges: Vec<f32> = line
+        .windows(2)
+        .filter(|w| w[0][0] == w[1][0])
+        .map(|w| w[0][0])
+        .collect();
+    let expected: Vec<f32> = (0..10)
+        .flat_map(|j| [0.5 + 0.5 * j as f32, 0.75 + 0.5 * j as f32])
+        .collect();
+    assert_eq!(edges, expected);
+    let n_f = &rec.entity("pipe/n_f").strips[0][0];
+    assert!(n_f.iter().all(|p| p[1] == -0.5), "n_F is uniform: {n_f:?}");
+
+    // the friction under the centre: one value per state, always one the pipe has, and the
+    // centre (from X = 0.5 m - dx / 2, moving forward) runs onto the first patch
+    let centre = rec.entity("pipe/centre_eps");
+    assert_eq!(centre.steps, rec.entity("tail/plant").steps);
+    assert!(centre.scalars.iter().all(|&e| e == 0.1 || e == 0.8));
+    assert_eq!(centre.scalars[0], 0.1);
+    assert!(
+        centre.scalars.contains(&0.8),
+        "the centre never reached the patch"
+    );
+    // the nodes on the line at every step whose fields were recorded
+    assert_eq!(rec.entity("pipe/body").steps, rec.entity("fields/u").steps);
 }
