@@ -2,6 +2,8 @@
 with and without authentication.
 
 Usage: .venv/bin/python bench/cosim_bench.py [--cells 256] [--steps 20000] [--trials 3]
+                                            [--policies adaptive,reflex]
+Builds the binaries it runs first (`cargo build --release`, said on stderr; a no-op when fresh).
 
 All in one run, interleaved trial by trial so that machine noise hits every column alike:
   ping-pong   `transport/examples/pingpong.rs`: the plant's session settings (router, express,
@@ -10,7 +12,10 @@ All in one run, interleaved trial by trial so that machine noise hits every colu
   lockstep    `crawler-plant run` + `crawler-controller run --policy wave` over loopback TCP;
   + bridge    the same with `crawler-bridge record --every 1` attached (every state recorded);
   no auth     lockstep with `--no-auth` on both processes: no zenoh password, no message seals
-              (every other column is authenticated, the default).
+              (every other column is authenticated, the default);
+  policies    lockstep with each feedback controller of `--policies` (`adaptive`: estimator on
+              every state, re-optimisation on a worker thread; `reflex`: the distributed law on
+              every node) instead of the open-loop `wave`, against the lockstep column.
 Rates are the plant's own count (`lockstep: N steps in S s`, printed after the run). The table
 gives medians over the trials, the ratios, and the recording's bytes per recorded step against
 the raw field data (u and v as f64, 16 N bytes).
@@ -68,7 +73,7 @@ def pingpong(size, seconds):
         pong.wait()
 
 
-def lockstep(cells, steps, bridge, work, auth=True):
+def lockstep(cells, steps, bridge, work, auth=True, policy="wave"):
     """Returns (steps per second, bytes per state, rrd bytes, recorded steps)."""
     run = f"bench{os.getpid()}{int(time.time() * 1000) % 100000}"
     ep = f"tcp/127.0.0.1:{free_port()}"
@@ -89,7 +94,7 @@ def lockstep(cells, steps, bridge, work, auth=True):
                                   "--every", "1"], stdout=subprocess.DEVNULL, stderr=open(berr, "w"))
             procs.append(b)
             wait_line(berr, "plant found", b)
-        ctl = subprocess.Popen([os.path.join(REL, "crawler-controller"), "run", *net, "--policy", "wave"],
+        ctl = subprocess.Popen([os.path.join(REL, "crawler-controller"), "run", *net, "--policy", policy],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         procs.append(ctl)
         if plant.wait(timeout=600) != 0:
@@ -122,11 +127,17 @@ def main():
     ap.add_argument("--steps", type=int, default=20000)
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=4.0, help="duration of each ping-pong")
+    ap.add_argument("--policies", default="adaptive,reflex",
+                    help="feedback policies timed against wave (comma-separated; empty: none)")
     a = ap.parse_args()
+    policies = [p for p in a.policies.split(",") if p]
+    print("cosim_bench: building the binaries it runs (cargo build --release; a no-op when fresh)",
+          file=sys.stderr)
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
                     "-p", "crawler-bridge", "-p", "crawler-transport", "--bins", "--examples"],
                    check=True, cwd=ROOT)
     pp, bare, withb, noauth, sizes = [], [], [], [], []
+    by_policy = {p: [] for p in policies}
     with tempfile.TemporaryDirectory() as work:
         _, state_bytes, _, _ = lockstep(a.cells, 6000, False, work)  # warm-up; learns the state size
         for t in range(a.trials):
@@ -134,12 +145,15 @@ def main():
             # with and without authentication back to back, in alternating order
             for auth in (True, False) if t % 2 == 0 else (False, True):
                 (bare if auth else noauth).append(lockstep(a.cells, a.steps, False, work, auth=auth)[0])
+            for p in policies if t % 2 == 0 else reversed(policies):
+                by_policy[p].append(lockstep(a.cells, a.steps, False, work, policy=p)[0])
             rate, _, size, recorded = lockstep(a.cells, a.steps, True, work)
             withb.append(rate)
             sizes.append(size / recorded)
             print(f"trial {t + 1}: ping-pong {pp[-1]:.0f}/s, lockstep {bare[-1]:.0f}/s, "
                   f"with bridge {withb[-1]:.0f}/s, {sizes[-1]:.0f} B per recorded step, "
-                  f"lockstep without authentication {noauth[-1]:.0f}/s", file=sys.stderr)
+                  f"lockstep without authentication {noauth[-1]:.0f}/s"
+                  + "".join(f", {p} {by_policy[p][-1]:.0f}/s" for p in policies), file=sys.stderr)
     mp, mb, mw, mn, ms = (statistics.median(x) for x in (pp, bare, withb, noauth, sizes))
     raw = 16 * a.cells
     print(f"N = {a.cells}, {a.steps} steps per run, State message {state_bytes} B, "
@@ -152,6 +166,9 @@ def main():
     print(f"| lockstep + bridge recording every step | {mw:.0f} | {mw / mb:.2f} of lockstep |")
     print(f"| lockstep without authentication (--no-auth) | {mn:.0f} | "
           f"authenticated lockstep is {mb / mn:.3f} of it |")
+    for p in policies:
+        mp_ = statistics.median(by_policy[p])
+        print(f"| lockstep with the `{p}` controller | {mp_:.0f} | {mp_ / mb:.3f} of lockstep (`wave`) |")
     print()
     print(f"recording: {ms:.0f} B per recorded step; raw u, v fields 16 N = {raw} B; ratio {ms / raw:.2f}")
 
