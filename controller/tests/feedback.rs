@@ -173,3 +173,53 @@ fn bad_feedback_settings_are_refused_with_their_name() {
     assert!(err(&[], &["f0=nan"]).contains("f0"));
     assert!(err(&[], &["k"]).contains("KEY=VALUE"));
 }
+
+/// The mismatch case in task mode (D = 1 m on J0 = 20 J, the pipe has eps = 0.3 and n_F = 0.7,
+/// every controller is told 0.1 and 0.5). The expectation was that the open-loop optimum, planned
+/// for the told friction, fails the task. Physics says otherwise, and this test states what it
+/// finds: more friction makes every gait faster (the speed grows with eps and n_F, V = eps c_d
+/// (n_F - <s>) / c_v), so the open-loop optimum arrives too, with most of its budget unused; the
+/// adaptive policy learns the friction, spends the budget on a faster gait and arrives sooner.
+/// In the nominal pipe the same open-loop plan spends (nearly) the whole budget: the energy to
+/// spare is the mismatch's doing, not the plan's.
+#[test]
+fn in_the_mismatch_pipe_the_open_loop_optimum_arrives_with_energy_to_spare_and_adaptive_sooner() {
+    let run = |file: &str, policy: &str| {
+        // the scenarios' own resolution (128 cells per shortest wave); at half of it the plant's
+        // power in the mismatch pipe is far from the model's and the adaptive plan runs dry
+        let sc = scenario(file, 512, 30.0);
+        let ctx =
+            Context::as_told(&sc, PolicyOptions::default(), FeedbackOptions::default()).unwrap();
+        let mut p = policies::build(policy, &ctx).unwrap();
+        let task = closed_loop::run(&sc, p.as_mut()).unwrap().report.task.unwrap();
+        assert_eq!(task.outcome, "reached", "{file}, {policy}: {task:?}");
+        assert!(task.time_over_sigma_max == 0.0, "{file}, {policy}: {task:?}");
+        (
+            task.time_to_distance.unwrap(),
+            task.energy_at_distance.unwrap(),
+            task.energy_budget,
+        )
+    };
+    let (t_open, e_open, budget) = run("mismatch.toml", "optimal");
+    let (t_adaptive, e_adaptive, _) = run("mismatch.toml", "adaptive");
+    let (_, e_nominal, _) = run("paper.toml", "optimal");
+    // the open-loop optimum reaches D on under half its budget in the mismatch pipe ...
+    assert!(
+        e_open < 0.5 * budget,
+        "open loop in the mismatch pipe: {e_open} J of {budget} J"
+    );
+    // ... while in the pipe it was planned for it spends nearly all of it
+    assert!(
+        e_nominal > 0.9 * budget,
+        "open loop in the nominal pipe: {e_nominal} J of {budget} J"
+    );
+    // the adaptive policy spends more of the budget (still within it) and arrives sooner
+    assert!(
+        e_adaptive > 2.0 * e_open && e_adaptive <= budget,
+        "adaptive {e_adaptive} J, open loop {e_open} J, budget {budget} J"
+    );
+    assert!(
+        t_adaptive < t_open,
+        "adaptive {t_adaptive} s, open loop {t_open} s"
+    );
+}
