@@ -4,14 +4,12 @@ mod adaptive;
 mod optimal;
 mod pulse;
 mod reflex;
-mod resonance;
 mod sweep;
 mod wave;
 
 pub use adaptive::{Adaptive, AdaptiveOptions};
 pub use optimal::Optimal;
 pub use reflex::{Reflex, ReflexOptions};
-pub use resonance::Resonance;
 pub use sweep::Sweep;
 pub use wave::FixedWave;
 
@@ -35,7 +33,7 @@ pub const REGISTRY: &[(&str, &str, Factory)] = &[
     (
         "resonance",
         "omega = omega_n for the given k",
-        resonance::build,
+        wave::build_resonance,
     ),
     (
         "sweep",
