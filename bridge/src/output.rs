@@ -5,7 +5,9 @@
 //! system, so the rename is atomic). The recorder renames it as soon as the first state of the run
 //! arrives: from then on `--out` is the new recording, growing as the run goes (a `kill -9`
 //! leaves a readable partial recording there). A run that ends before any state (bad peer, no
-//! plant, Ctrl-C while waiting) removes the temporary file and leaves `--out` as it was.
+//! plant, Ctrl-C while waiting) removes the temporary file and leaves `--out` as it was. A
+//! recorder killed (`kill -9`) before the first state cannot remove its twin; the next recorder
+//! to the same `--out` removes the twins of processes that no longer run.
 
 use std::path::{Path, PathBuf};
 
@@ -59,6 +61,7 @@ impl Output {
     /// Creates the temporary file (empty), proving the directory writable; the recording's
     /// file sink then opens it. Errors name `--out`.
     pub fn create(&self) -> anyhow::Result<&Path> {
+        self.remove_stale_twins();
         std::fs::File::create(&self.temp).map_err(|e| {
             anyhow::anyhow!(
                 "invalid --out = {}: allowed a file path in an existing, writable directory (cannot create {}: {e})",
@@ -67,6 +70,33 @@ impl Output {
             )
         })?;
         Ok(&self.temp)
+    }
+
+    /// Removes `.<name>.partial-<pid>` files next to `--out` whose process no longer runs (no
+    /// `/proc/<pid>`): twins left by a recorder killed before its run's first state. Twins of
+    /// running processes (another recorder to the same file) are left alone.
+    fn remove_stale_twins(&self) {
+        let (Some(dir), Some(name)) = (self.temp.parent(), self.out.file_name()) else {
+            return;
+        };
+        let prefix = format!(".{}.partial-", name.to_string_lossy());
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for entry in entries.flatten() {
+            let file = entry.file_name();
+            let Some(pid) = file
+                .to_str()
+                .and_then(|f| f.strip_prefix(&prefix))
+                .and_then(|p| p.parse::<u32>().ok())
+            else {
+                continue;
+            };
+            let gone = !Path::new(&format!("/proc/{pid}")).exists();
+            if gone && pid != std::process::id() && entry.path().is_file() {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
     }
 
     /// The file the recording is written to until it is promoted.
@@ -149,6 +179,29 @@ mod tests {
         }
         assert_eq!(std::fs::read(&out).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn twins_of_dead_recorders_are_removed_and_those_of_live_ones_kept() {
+        let d = scratch("stale");
+        let out = d.join("x.rrd");
+        // a process that has ended: its pid names no running process (unless reused at once)
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let dead = child.id();
+        child.wait().unwrap();
+        let stale = d.join(format!(".x.rrd.partial-{dead}"));
+        let live = d.join(".x.rrd.partial-1"); // init runs as long as the machine
+        let other = d.join(format!(".y.rrd.partial-{dead}")); // another output's twin
+        for f in [&stale, &live, &other] {
+            std::fs::write(f, b"header only").unwrap();
+        }
+        {
+            let o = Output::new(&out).unwrap();
+            o.create().unwrap();
+            assert!(!stale.exists(), "the dead recorder's twin is still there");
+            assert!(live.exists() && other.exists());
+        }
         std::fs::remove_dir_all(&d).unwrap();
     }
 

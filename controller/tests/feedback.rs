@@ -191,9 +191,16 @@ fn in_the_mismatch_pipe_the_open_loop_optimum_arrives_with_energy_to_spare_and_a
         let ctx =
             Context::as_told(&sc, PolicyOptions::default(), FeedbackOptions::default()).unwrap();
         let mut p = policies::build(policy, &ctx).unwrap();
-        let task = closed_loop::run(&sc, p.as_mut()).unwrap().report.task.unwrap();
+        let task = closed_loop::run(&sc, p.as_mut())
+            .unwrap()
+            .report
+            .task
+            .unwrap();
         assert_eq!(task.outcome, "reached", "{file}, {policy}: {task:?}");
-        assert!(task.time_over_sigma_max == 0.0, "{file}, {policy}: {task:?}");
+        assert!(
+            task.time_over_sigma_max == 0.0,
+            "{file}, {policy}: {task:?}"
+        );
         (
             task.time_to_distance.unwrap(),
             task.energy_at_distance.unwrap(),
