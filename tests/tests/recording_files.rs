@@ -261,3 +261,80 @@ fn a_viewer_that_goes_away_mid_run_does_not_stop_the_recording() {
     let (ok, said) = verify(&rrd);
     assert!(ok, "{said}");
 }
+
+/// `--spawn` starts the viewer itself (here `--viewer-exe`, a wrapper that runs the venv's Rerun
+/// as a headless server saving what it receives, with every argument the recorder gives it), on
+/// the port of `--connect`, and the viewer gets the whole run while the file is written.
+#[test]
+fn spawn_starts_a_viewer_that_receives_the_whole_run() {
+    let run = Run::new("spawn");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let saved = run.path("spawned.rrd");
+    let pid_file = run.path("viewer.pid");
+    let wrapper = run.path("viewer.sh");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\necho $$ > '{}'\nexec env CI=1 '{}' --save '{}' \"$@\" 2>'{}'\n",
+            pid_file.display(),
+            rerun_cli().display(),
+            saved.display(),
+            run.path("viewer.err").display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(
+        &wrapper,
+        std::os::unix::fs::PermissionsExt::from_mode(0o755),
+    )
+    .unwrap();
+    /// Terminates the spawned viewer (by the pid its wrapper wrote) and the process the venv's
+    /// `rerun` script starts under it, whatever happens.
+    struct Spawned(PathBuf);
+    impl Drop for Spawned {
+        fn drop(&mut self) {
+            if let Ok(pid) = std::fs::read_to_string(&self.0) {
+                let _ = Command::new("pkill")
+                    .args(["-TERM", "-P", pid.trim()])
+                    .status();
+                let _ = Command::new("kill").args(["-TERM", pid.trim()]).status();
+            }
+        }
+    }
+    let spawned = Spawned(pid_file.clone());
+    let url = format!("rerun+http://127.0.0.1:{port}/proxy");
+    let rrd = run.path("spawn.rrd");
+    let wrapper_arg = wrapper.display().to_string();
+    let stderr = full_run(
+        &run,
+        &rrd,
+        &["--connect", &url, "--spawn", "--viewer-exe", &wrapper_arg],
+    );
+    // the viewer outlives the recorder (the user closes it): the test does, on drop
+    assert!(pid_file.is_file(), "the wrapper never ran: {stderr}");
+    let file = rows(&read_recording(&rrd).unwrap());
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let got = loop {
+        let got = read_recording(&saved).map(|r| rows(&r)).ok();
+        if got.as_ref() == Some(&file) || Instant::now() > deadline {
+            break got;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    drop(spawned);
+    assert!(
+        stderr.contains(&format!("the viewer got everything at {url}")),
+        "{stderr}"
+    );
+    assert!(file["tail/plant"] > 1000, "{file:?}");
+    assert_eq!(
+        got.as_ref(),
+        Some(&file),
+        "the spawned viewer's copy differs from the file; viewer log: {}",
+        std::fs::read_to_string(run.path("viewer.err")).unwrap_or_default()
+    );
+}
