@@ -54,10 +54,12 @@ pub const METRICS: [&str; 5] = [
     "stuck_fraction",
 ];
 
-/// The plant's final report: `summary/<metric>` scalars and the JSON document at `summary`.
+/// The plant's final report (its `finished` status): `summary/<metric>` scalars and the report
+/// as a JSON document at `summary`.
 pub const SUMMARY_ROOT: &str = "summary";
 
-/// The metrics of the final report recorded as scalars.
+/// The metrics of the final report recorded as scalars (a mileage that is not a number, P = 0,
+/// is not recorded).
 pub const SUMMARY: [&str; 8] = [
     "velocity",
     "power",
