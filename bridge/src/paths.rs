@@ -29,6 +29,20 @@ pub const LOG_STATUS: &str = "log/status";
 pub const LOG_RECORDER: &str = "log/recorder";
 /// Per-step scalars: mean speed and input power of each communication step.
 pub const STEP: &str = "step";
+/// What the plant applied over each step (`State.applied`): under a wave, its parameters as
+/// scalar series `actuation/applied/<param>` at every state; under a field, the field.
+pub const APPLIED: &str = "actuation/applied";
+/// The applied muscle-force field `A_m f` at the half nodes, one bar per cell, N (at the steps
+/// whose fields are recorded).
+pub const APPLIED_FIELD: &str = "actuation/applied/field";
+/// The wave's parameters recorded under [`APPLIED`]: amplitude f0 (N), wave number k (rad/m),
+/// angular frequency omega (rad/s), phase (rad).
+pub const APPLIED_WAVE: [&str; 4] = ["f0", "k", "omega", "phase"];
+
+/// The series of the applied wave's parameter `param` (`f0`, `k`, `omega`, `phase`).
+pub fn applied(param: &str) -> String {
+    format!("{APPLIED}/{param}")
+}
 
 /// The time series of `metric` (`velocity`, `power`, ...): `metrics/<metric>/<source>`.
 pub fn metric(metric: &str) -> String {

@@ -576,8 +576,23 @@ impl Recorder {
             format!("{}/mean_speed", paths::STEP),
             &rerun::Scalars::single(s.mean_speed),
         )?;
+        // what the plant applied over the step that ended here: a wave's numbers at every state
+        if let Some(w) = s.applied.as_ref().and_then(|a| a.wave) {
+            for (name, value) in paths::APPLIED_WAVE
+                .iter()
+                .zip([w.f0, w.k, w.omega, w.phase])
+            {
+                self.rec
+                    .log(paths::applied(name), &rerun::Scalars::single(value))?;
+            }
+        }
         if !s.step.is_multiple_of(self.every) && !s.last {
             return Ok(());
+        }
+        // a field with the other fields (decimated alike), in float64: the values applied
+        if let Some(f) = s.applied.as_ref().and_then(|a| a.field.as_ref()) {
+            self.rec
+                .log(paths::APPLIED_FIELD, &rerun::BarChart::new(f.clone()))?;
         }
         self.counts.recorded_steps += 1;
         let mean = s.u.iter().sum::<f64>() / n as f64;
