@@ -37,7 +37,7 @@ import time
 import msgpack
 import zenoh
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 
 
 def run_dir(run_id):
@@ -137,7 +137,7 @@ def wait_for(path, timeout):
 def state_inbox(session, base, key, cells):
     """The plant's states, checked at arrival, in a bounded queue; and the subscriber filling it."""
     states = queue.Queue(maxsize=64)  # bounded: a flood is dropped, not queued
-    max_state = 28 * cells + 512
+    max_state = 37 * cells + 512  # RunLimits::state: u, vel, tension, stuck and the applied field
 
     def on_state(sample):
         # size first, then the seal: only the run's plant can have sent it

@@ -6,7 +6,9 @@
 use std::time::Duration;
 
 use crawler_bridge::{Incoming, Recorder, RecorderOptions};
-use crawler_protocol::{encode, EpisodeMsg, Events, Metrics, ModelInfo, State, PROTOCOL_VERSION};
+use crawler_protocol::{
+    encode, Applied, EpisodeMsg, Events, Metrics, ModelInfo, State, WaveMsg, PROTOCOL_VERSION,
+};
 
 fn rss_mib() -> f64 {
     let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
@@ -67,6 +69,15 @@ fn main() -> anyhow::Result<()> {
             mean_speed: 0.05,
             input_power: 4.7,
             last: n == steps,
+            applied: (n > 0).then_some(Applied {
+                wave: Some(WaveMsg {
+                    f0: 0.5,
+                    k: std::f64::consts::TAU,
+                    omega: 74.0,
+                    phase: 0.0,
+                }),
+                field: None,
+            }),
         };
         r.handle(Incoming::State(encode(&s)))?;
         if n % 85 == 84 {

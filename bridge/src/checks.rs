@@ -4,7 +4,7 @@
 //!
 //! Pure functions of a message and the run's facts: no clock, no network, no recording.
 
-use crawler_protocol::{Events, Metrics, ModelInfo, Prediction, State, Status};
+use crawler_protocol::{Events, Metrics, ModelInfo, Prediction, ProcessState, State, Status};
 
 /// What the plant said about its run, as the checks need it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -191,17 +191,17 @@ pub fn prediction(p: &Prediction, f: &RunFacts, controller: Option<&str>) -> Res
 /// (`last_state`, once it came: the model's last step, or an earlier one where the plant decided
 /// its task and ended the run), else the model's.
 pub fn terminal(s: &Status, f: &RunFacts, last_state: Option<u64>) -> Result<(), String> {
-    match (s.state.as_str(), last_state) {
-        ("finished", Some(l)) if s.step != l => Err(format!(
+    match (s.state, last_state) {
+        (ProcessState::Finished, Some(l)) if s.step != l => Err(format!(
             "status finished at step {}: the plant's last state was step {l}",
             s.step
         )),
-        ("finished", None) if s.step != f.last_step => Err(format!(
+        (ProcessState::Finished, None) if s.step != f.last_step => Err(format!(
             "status finished at step {}: the run ends at step {} (or earlier, at the step of the \
              plant's last state, which has not come)",
             s.step, f.last_step
         )),
-        ("finished" | "failed" | "stopped", _) => f.step_ok("status", s.step),
+        (state, _) if state.is_terminal() => f.step_ok("status", s.step),
         _ => Ok(()),
     }
 }
@@ -209,7 +209,7 @@ pub fn terminal(s: &Status, f: &RunFacts, last_state: Option<u64>) -> Result<(),
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crawler_protocol::{EpisodeMsg, PROTOCOL_VERSION};
+    use crawler_protocol::{EpisodeMsg, Role, PROTOCOL_VERSION};
 
     fn facts() -> RunFacts {
         // 128 cells, t0 = 0, H = 1 ms, 8000 steps: the run is [0, 8] s
@@ -368,13 +368,13 @@ mod tests {
         let f = facts();
         let status = |state: &str, step: u64| Status {
             v: PROTOCOL_VERSION,
-            role: "plant".into(),
+            role: Role::Plant,
             id: "p".into(),
-            state: state.into(),
+            state: ProcessState::parse(state).unwrap(),
             message: String::new(),
             step,
             rejected: Default::default(),
-            summary: None,
+            report: None,
         };
         terminal(&status("finished", 8000), &f, None).unwrap();
         terminal(&status("finished", 8000), &f, Some(8000)).unwrap();
@@ -409,6 +409,7 @@ mod tests {
             mean_speed: 0.0,
             input_power: 0.0,
             last: false,
+            applied: None,
         };
         state(&st(128, 3000, 3.0), &f).unwrap();
         assert!(state(&st(127, 3000, 3.0), &f)

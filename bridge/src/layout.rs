@@ -1,6 +1,7 @@
 //! The default layout (blueprint) embedded in every recording.
 //!
-//! Left column: the body crawling in space, the fields u(x) and v(x), the space-time heatmap of u.
+//! Left column: the body crawling in space, the fields u(x) and v(x) and the actuation the plant
+//! applied (a field, or a wave's parameters over time), the space-time heatmap of u.
 //! Right column: the metrics over time with the models' predictions, the tail displacement beside
 //! the paper's analytic solution (its Fig. 4), the stick/slip lanes and the event log.
 //!
@@ -89,6 +90,16 @@ fn tree() -> Node {
                     vec![
                         view("BarChart", "u(x) - mean u [m]", paths::FIELD_U),
                         view("BarChart", "v(x) [m/s]", paths::FIELD_V),
+                        view(
+                            "BarChart",
+                            "Applied muscle force A_m f(x) [N] (field actuation)",
+                            paths::APPLIED_FIELD,
+                        ),
+                        view(
+                            "TimeSeries",
+                            "Applied wave: f0 [N], k [rad/m], omega [rad/s], phase [rad]",
+                            paths::APPLIED,
+                        ),
                     ],
                 ),
                 container(

@@ -40,6 +40,20 @@ pub const LOG_STATUS: &str = "log/status";
 pub const LOG_RECORDER: &str = "log/recorder";
 /// Per-step scalars: mean speed and input power of each communication step.
 pub const STEP: &str = "step";
+/// What the plant applied over each step (`State.applied`): under a wave, its parameters as
+/// scalar series `actuation/applied/<param>` at every state; under a field, the field.
+pub const APPLIED: &str = "actuation/applied";
+/// The applied muscle-force field `A_m f` at the half nodes, one bar per cell, N (at the steps
+/// whose fields are recorded).
+pub const APPLIED_FIELD: &str = "actuation/applied/field";
+/// The wave's parameters recorded under [`APPLIED`]: amplitude f0 (N), wave number k (rad/m),
+/// angular frequency omega (rad/s), phase (rad).
+pub const APPLIED_WAVE: [&str; 4] = ["f0", "k", "omega", "phase"];
+
+/// The series of the applied wave's parameter `param` (`f0`, `k`, `omega`, `phase`).
+pub fn applied(param: &str) -> String {
+    format!("{APPLIED}/{param}")
+}
 
 /// The time series of `metric` (`velocity`, `power`, ...): `metrics/<metric>/<source>`.
 pub fn metric(metric: &str) -> String {
@@ -65,10 +79,12 @@ pub const METRICS: [&str; 5] = [
     "stuck_fraction",
 ];
 
-/// The plant's final report: `summary/<metric>` scalars and the JSON document at `summary`.
+/// The plant's final report (its `finished` status): `summary/<metric>` scalars and the report
+/// as a JSON document at `summary`.
 pub const SUMMARY_ROOT: &str = "summary";
 
-/// The metrics of the final report recorded as scalars.
+/// The metrics of the final report recorded as scalars (a mileage that is not a number, P = 0,
+/// is not recorded).
 pub const SUMMARY: [&str; 8] = [
     "velocity",
     "power",

@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 use rerun::RecordingStream;
 
 use crawler_protocol::{
-    decode, Environment, Events, Metrics, ModelPrediction, Prediction, Series, State, Status,
+    decode, Environment, Events, FinalReport, Metrics, ModelPrediction, Prediction, ProcessState,
+    Role, Series, State, Status,
 };
 
 use crate::checks::{self, RunFacts};
@@ -635,10 +636,25 @@ impl Recorder {
             format!("{}/mean_speed", paths::STEP),
             &rerun::Scalars::single(s.mean_speed),
         )?;
+        // what the plant applied over the step that ended here: a wave's numbers at every state
+        if let Some(w) = s.applied.as_ref().and_then(|a| a.wave) {
+            for (name, value) in paths::APPLIED_WAVE
+                .iter()
+                .zip([w.f0, w.k, w.omega, w.phase])
+            {
+                self.rec
+                    .log(paths::applied(name), &rerun::Scalars::single(value))?;
+            }
+        }
         let recorded = s.step.is_multiple_of(self.every) || s.last;
         self.log_pipe(s, recorded)?;
         if !recorded {
             return Ok(());
+        }
+        // a field with the other fields (decimated alike), in float64: the values applied
+        if let Some(f) = s.applied.as_ref().and_then(|a| a.field.as_ref()) {
+            self.rec
+                .log(paths::APPLIED_FIELD, &rerun::BarChart::new(f.clone()))?;
         }
         self.counts.recorded_steps += 1;
         let mean = s.u.iter().sum::<f64>() / n as f64;
@@ -890,8 +906,8 @@ impl Recorder {
     fn log_status(&mut self, s: &Status) -> anyhow::Result<()> {
         // Only the plant whose liveliness token we saw speaks for the plant, and only what fits
         // the run.
-        let from_plant = s.role == "plant" && self.plant_id.as_deref() == Some(s.id.as_str());
-        if s.role == "plant" && !from_plant {
+        let from_plant = s.role == Role::Plant && self.plant_id.as_deref() == Some(s.id.as_str());
+        if s.role == Role::Plant && !from_plant {
             self.invalid(
                 "status",
                 &format!("a plant status from {:?}, not from the run's plant", s.id),
@@ -901,7 +917,7 @@ impl Recorder {
         if from_plant {
             if let Some(f) = self.facts {
                 if let Err(reason) = checks::terminal(s, &f, self.plant_last_state) {
-                    let early = s.state == "finished"
+                    let early = s.state == ProcessState::Finished
                         && self.plant_last_state.is_none()
                         && s.step < f.last_step;
                     if early && self.held_finished.len() < HELD_FINISHED_MAX {
@@ -916,9 +932,9 @@ impl Recorder {
                 }
             }
         }
-        let level = match s.state.as_str() {
-            "failed" => rerun::TextLogLevel::ERROR,
-            "stopped" => rerun::TextLogLevel::WARN,
+        let level = match s.state {
+            ProcessState::Failed => rerun::TextLogLevel::ERROR,
+            ProcessState::Stopped => rerun::TextLogLevel::WARN,
             _ => rerun::TextLogLevel::INFO,
         };
         self.rec.log(
@@ -929,34 +945,43 @@ impl Recorder {
             ))
             .with_level(level),
         )?;
-        if from_plant && s.state == "finished" {
-            if let Some(summary) = &s.summary {
-                self.log_summary(summary)?;
+        if from_plant && s.state == ProcessState::Finished {
+            if let Some(report) = &s.report {
+                self.log_report(report)?;
             }
         }
-        if from_plant && matches!(s.state.as_str(), "finished" | "failed" | "stopped") {
+        if from_plant && s.state.is_terminal() {
             self.finished = true;
         }
         Ok(())
     }
 
-    /// The plant's final report: its steady metrics as scalars under `summary/`, and the JSON.
-    fn log_summary(&mut self, json: &str) -> anyhow::Result<()> {
+    /// The plant's final report: its metrics as scalars under `summary/`, and the whole report
+    /// as a JSON document at `summary`.
+    fn log_report(&mut self, r: &FinalReport) -> anyhow::Result<()> {
         let (step, time) = self.last_step_time;
         self.set_time(step, time);
-        if let Ok(v) = serde_json::from_str::<serde_json::Value>(json) {
-            for key in paths::SUMMARY {
-                if let Some(x) = v.get(key).and_then(|x| x.as_f64()) {
-                    self.rec.log(
-                        format!("{}/{key}", paths::SUMMARY_ROOT),
-                        &rerun::Scalars::single(x),
-                    )?;
-                }
+        let values = [
+            Some(r.velocity),
+            Some(r.power),
+            r.mileage,
+            Some(r.max_stress),
+            Some(r.max_strain),
+            Some(r.stuck_fraction),
+            Some(r.mean_friction_selection),
+            Some(r.dissipation),
+        ];
+        for (key, value) in paths::SUMMARY.iter().zip(values) {
+            if let Some(x) = value {
+                self.rec.log(
+                    format!("{}/{key}", paths::SUMMARY_ROOT),
+                    &rerun::Scalars::single(x),
+                )?;
             }
         }
         self.rec.log(
             paths::SUMMARY_ROOT,
-            &rerun::TextDocument::new(json.to_string()),
+            &rerun::TextDocument::new(serde_json::to_string_pretty(r)?),
         )?;
         Ok(())
     }

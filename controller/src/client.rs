@@ -21,16 +21,16 @@ use crawler_plant::params::{Body, Boundary, Friction};
 use crawler_plant::scenario::Scenario;
 use crawler_plant::wave::Wave;
 use crawler_protocol::{
-    decode, encode, Actuation as ActuationMsg, ModelInfo, ModelPrediction,
-    Prediction as PredictionMsg, Rejections, Role, RunKeys, RunLimits, Series, State, Status,
-    WaveMsg, PROTOCOL_VERSION,
+    decode, encode, Actuation as ActuationMsg, FinalReport, ModelInfo, ModelPrediction,
+    Prediction as PredictionMsg, ProcessState, Rejections, Role, RunKeys, RunLimits, Series, State,
+    Status, WaveMsg, PROTOCOL_VERSION,
 };
 use crawler_transport::budget::{ByteBudget, Charged};
 use crawler_transport::gate::{self, Gate, Refused};
 use crawler_transport::{Credential, Network, Seal};
 
 /// The smallest byte budget of the state inbox (states and the plant's statuses): a plant has
-/// one state in flight; this holds eight of a 36 000-cell run's.
+/// one state in flight; this holds eight of a 28 000-cell run's.
 pub const STATE_INBOX_BYTES: usize = 8 << 20;
 
 use crate::controller::{Actuation, Context, FeedbackOptions, Insight, Observation, PolicyOptions};
@@ -81,8 +81,8 @@ pub struct FinalSummary {
     pub policy: String,
     /// The last wave applied.
     pub wave: Option<WaveMsg>,
-    /// The plant's final report (the object of `crawler-plant simulate --json`), if received.
-    pub plant: Option<serde_json::Value>,
+    /// The plant's final report, from its `finished` status, if received.
+    pub plant: Option<FinalReport>,
     /// The models' predictions for the last wave.
     pub predictions: Vec<ModelPrediction>,
     /// Steps answered.
@@ -94,11 +94,7 @@ impl FinalSummary {
     /// Errors are relative, except for the stuck fraction (a share, often near zero), whose
     /// difference is given in absolute terms.
     pub fn table(&self) -> String {
-        let steady = self
-            .plant
-            .as_ref()
-            .and_then(|p| p.pointer("/window/steady"))
-            .and_then(|v| v.as_bool());
+        let steady = self.plant.as_ref().map(|p| p.window.steady);
         let mut out = match steady {
             Some(false) => "predicted (steady state of the last wave) against simulated (run averages: \
                             the actuation changed within the plant's window, so it is not a steady state):\n"
@@ -111,33 +107,26 @@ impl FinalSummary {
                 w.f0, w.k, w.omega
             );
         }
-        let plant = |key: &str| {
-            self.plant
-                .as_ref()
-                .and_then(|p| p.get(key))
-                .and_then(|v| v.as_f64())
-        };
         let rows: [Row; 5] = [
-            ("velocity V", "m/s", |m| m.velocity),
-            ("power P", "W", |m| m.power),
-            ("mileage M", "m/J", |m| m.mileage),
-            ("max stress", "Pa", |m| m.max_stress),
-            ("stuck fraction", "", |m| m.stuck_fraction),
-        ];
-        let keys = [
-            "velocity",
-            "power",
-            "mileage",
-            "max_stress",
-            "stuck_fraction",
+            ("velocity V", "m/s", |m| m.velocity, |r| Some(r.velocity)),
+            ("power P", "W", |m| m.power, |r| Some(r.power)),
+            ("mileage M", "m/J", |m| m.mileage, |r| r.mileage),
+            ("max stress", "Pa", |m| m.max_stress, |r| Some(r.max_stress)),
+            (
+                "stuck fraction",
+                "",
+                |m| m.stuck_fraction,
+                |r| Some(r.stuck_fraction),
+            ),
         ];
         out += &format!("{:<16} {:>14}", "metric", "plant");
         for m in &self.predictions {
             out += &format!(" {:>14} {:>8}", m.model, "error");
         }
         out += "\n";
-        for ((name, unit, get), key) in rows.iter().zip(keys) {
-            let sim = plant(key);
+        for (name, unit, get, simulated) in &rows {
+            let sim = self.plant.as_ref().and_then(simulated);
+            let share = *name == "stuck fraction";
             out += &format!(
                 "{:<16} {:>14}",
                 format!("{name} {unit}").trim_end(),
@@ -146,7 +135,7 @@ impl FinalSummary {
             for m in &self.predictions {
                 let p = get(m);
                 let err = match (p, sim) {
-                    (Some(p), Some(s)) if key == "stuck_fraction" => format!("{:+.4}", p - s),
+                    (Some(p), Some(s)) if share => format!("{:+.4}", p - s),
                     (Some(p), Some(s)) if s != 0.0 => format!("{:+.2}%", 100.0 * (p / s - 1.0)),
                     _ => "-".into(),
                 };
@@ -158,11 +147,12 @@ impl FinalSummary {
     }
 }
 
-/// A row of the comparison table: label, unit, the model value.
+/// A row of the comparison table: label, unit, the model's value, the plant's value.
 type Row = (
     &'static str,
     &'static str,
     fn(&ModelPrediction) -> Option<f64>,
+    fn(&FinalReport) -> Option<f64>,
 );
 
 fn fmt(x: Option<f64>) -> String {
@@ -431,17 +421,17 @@ fn publish_status(
     publisher: &zenoh::pubsub::Publisher<'_>,
     seal: Option<&Seal>,
     id: &str,
-    (state, message, step): (&str, &str, u64),
+    (state, message, step): (ProcessState, &str, u64),
 ) {
     let s = Status {
         v: PROTOCOL_VERSION,
-        role: Role::Controller.as_str().into(),
+        role: Role::Controller,
         id: id.to_string(),
-        state: state.into(),
+        state,
         message: message.into(),
         step,
         rejected: Rejections::default(),
-        summary: None,
+        report: None,
     };
     let _ = gate::put(publisher, seal, encode(&s));
 }
@@ -464,7 +454,11 @@ fn discover(
         &status_pub,
         link.seal.as_ref(),
         id,
-        ("waiting", "waiting for the plant's model description", 0),
+        (
+            ProcessState::Waiting,
+            "waiting for the plant's model description",
+            0,
+        ),
     );
     let gate = Gate::new(
         RunLimits::before_model(),
@@ -564,7 +558,7 @@ fn serve(
         .declare_publisher(keys.status(Role::Controller))
         .wait()
         .map_err(z)?;
-    let publish_status = |state: &str, message: &str, step: u64| {
+    let publish_status = |state: ProcessState, message: &str, step: u64| {
         publish_status(&status_pub, seal, id, (state, message, step));
     };
 
@@ -614,7 +608,11 @@ fn serve(
         .declare_token(keys.alive(Role::Controller, id))
         .wait()
         .map_err(z)?;
-    publish_status("running", &format!("policy {}", policy.name()), 0);
+    publish_status(
+        ProcessState::Running,
+        &format!("policy {}", policy.name()),
+        0,
+    );
 
     let mut last_wave: Option<Wave> = None;
     // The step of the plant's last state (last: true) to us: the run's last step, which is the
@@ -626,7 +624,7 @@ fn serve(
     let mut pending_finished: BTreeMap<u64, Status> = BTreeMap::new();
     let mut last_predictions = Vec::new();
     let mut answered = 0u64;
-    let plant_summary: Option<serde_json::Value>;
+    let plant_report: Option<FinalReport>;
     // The plant is the process whose liveliness token we see; statuses from any other id are
     // ignored (a stray publisher cannot end the run for us), and so are states for another
     // controller (if no state ever comes for us, we report who has the run).
@@ -638,7 +636,7 @@ fn serve(
     loop {
         crossbeam_channel::select! {
             recv(interrupt) -> _ => {
-                publish_status("stopped", "interrupted", answered);
+                publish_status(ProcessState::Stopped, "interrupted", answered);
                 return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit: Exit::Interrupted });
             }
             recv(ev_rx) -> ev => match ev {
@@ -654,11 +652,11 @@ fn serve(
             recv(status_rx) -> st => {
                 let Ok(st) = st else { continue };
                 let (st, _charge) = st.split();
-                if plant_id.as_deref() != Some(st.id.as_str()) || st.role != "plant" {
+                if plant_id.as_deref() != Some(st.id.as_str()) || st.role != Role::Plant {
                     ignored += 1;
                     continue;
                 }
-                if st.state == "finished"
+                if st.state == ProcessState::Finished
                     && last_state_step.is_none()
                     && finished_may_follow(&st, &info, latest_step)
                 {
@@ -678,13 +676,13 @@ fn serve(
                     );
                     continue;
                 }
-                match st.state.as_str() {
-                    "finished" => {
-                        plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
+                match st.state {
+                    ProcessState::Finished => {
+                        plant_report = st.report;
                         break;
                     }
-                    "failed" | "stopped" if answered > 0 || st.step > 0 => {
-                        publish_status("stopped", &format!("plant {}: {}", st.state, st.message), answered);
+                    ProcessState::Failed | ProcessState::Stopped if answered > 0 || st.step > 0 => {
+                        publish_status(ProcessState::Stopped, &format!("plant {}: {}", st.state, st.message), answered);
                         return Ok(ClientOutcome::Ended { reason: format!("the plant {}: {}", st.state, st.message), exit: Exit::Failure });
                     }
                     _ => {}
@@ -718,7 +716,7 @@ fn serve(
                     if last_state_step.is_none() && last_state_fits(state.step, &info, latest_step) {
                         last_state_step = Some(state.step);
                         if let Some(st) = pending_finished.remove(&state.step) {
-                            plant_summary = st.summary.as_deref().and_then(|s| serde_json::from_str(s).ok());
+                            plant_report = st.report;
                             break;
                         }
                     } else {
@@ -801,7 +799,11 @@ fn serve(
             },
         }
     }
-    publish_status("finished", &format!("answered {answered} steps"), answered);
+    publish_status(
+        ProcessState::Finished,
+        &format!("answered {answered} steps"),
+        answered,
+    );
     let refused_total = refused.oversize() + refused.unsealed() + budget.overflow();
     if ignored > 0 || refused_total > 0 {
         eprintln!(
@@ -820,7 +822,7 @@ fn serve(
             omega: w.omega,
             phase: w.phase,
         }),
-        plant: plant_summary,
+        plant: plant_report,
         predictions: last_predictions,
         steps: answered,
     })))
@@ -834,10 +836,10 @@ const PENDING_FINISHED_MAX: usize = 8;
 /// the plant decided its task and ended the run), `failed` and `stopped` only within the run's
 /// steps. Non-terminal states are always consistent.
 pub fn terminal_is_consistent(st: &Status, info: &ModelInfo, last_state_step: Option<u64>) -> bool {
-    match st.state.as_str() {
-        "finished" => st.step <= info.last_step && last_state_step == Some(st.step),
-        "failed" | "stopped" => st.step <= info.last_step,
-        _ => true,
+    match st.state {
+        ProcessState::Finished => st.step <= info.last_step && last_state_step == Some(st.step),
+        ProcessState::Failed | ProcessState::Stopped => st.step <= info.last_step,
+        ProcessState::Waiting | ProcessState::Running => true,
     }
 }
 
@@ -884,13 +886,13 @@ mod tests {
     fn status(state: &str, step: u64) -> Status {
         Status {
             v: PROTOCOL_VERSION,
-            role: "plant".into(),
+            role: Role::Plant,
             id: "p".into(),
-            state: state.into(),
+            state: ProcessState::parse(state).unwrap(),
             message: String::new(),
             step,
             rejected: Default::default(),
-            summary: None,
+            report: None,
         }
     }
 

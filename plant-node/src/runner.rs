@@ -18,14 +18,14 @@ use crossbeam_channel::{Receiver, Sender};
 
 use crawler_cli::Exit;
 use crawler_plant::model_description::ModelDescription;
-use crawler_plant::plant::Plant;
+use crawler_plant::plant::{Drive, Plant};
 use crawler_plant::scenario::Scenario;
 use crawler_plant::simulate::{mean_position, report_with_task, EpisodeLog, Report};
 use crawler_plant::slave::{Slave, StepStatus};
 use crawler_plant::task::TaskTracker;
 use crawler_protocol::{
-    encode, Environment, EpisodeMsg, Events, Metrics as MetricsMsg, ModelInfo, Rejections, Role,
-    RunLimits, State, Status, PROTOCOL_VERSION,
+    encode, Applied, Environment, EpisodeMsg, Events, FinalReport, Metrics as MetricsMsg,
+    ModelInfo, ProcessState, Rejections, Role, RunLimits, State, Status, WaveMsg, PROTOCOL_VERSION,
 };
 use crawler_transport::Network;
 
@@ -244,21 +244,21 @@ impl Runner {
     fn status(
         &self,
         out: &impl Outbox,
-        state: &str,
+        state: ProcessState,
         message: &str,
         step: u64,
         rejected: Rejections,
-        summary: Option<String>,
+        report: Option<FinalReport>,
     ) {
         let s = Status {
             v: PROTOCOL_VERSION,
-            role: Role::Plant.as_str().into(),
+            role: Role::Plant,
             id: self.id.clone(),
-            state: state.into(),
+            state,
             message: message.into(),
             step,
             rejected,
-            summary,
+            report,
         };
         out.put(Topic::Status, encode(&s));
     }
@@ -291,9 +291,9 @@ impl Runner {
             None => None,
         };
         let state = if exit == Exit::Interrupted {
-            "stopped"
+            ProcessState::Stopped
         } else {
-            "failed"
+            ProcessState::Failed
         };
         let message = match &path {
             Some(p) => format!("{reason}; checkpoint written to {}", p.display()),
@@ -331,6 +331,7 @@ impl Runner {
             mean_speed: plant.outputs().mean_speed,
             input_power: plant.outputs().input_power,
             last: n >= self.last_step,
+            applied: applied(plant),
         };
         let bytes = encode(&s);
         let len = bytes.len();
@@ -413,7 +414,7 @@ impl Runner {
         eprintln!("crawler-plant: {what}");
         self.status(
             out,
-            "waiting",
+            ProcessState::Waiting,
             &what,
             self.plant().macro_step(),
             self.rejected(inbox),
@@ -465,7 +466,7 @@ impl Runner {
         bar.set_position(first);
         self.status(
             out,
-            "running",
+            ProcessState::Running,
             &format!("controller {joined} joined"),
             first,
             self.rejected(inbox),
@@ -569,7 +570,7 @@ impl Runner {
             if last_status.elapsed() >= STATUS_EVERY {
                 self.status(
                     out,
-                    "running",
+                    ProcessState::Running,
                     &format!("step {} of {}", n + 1, self.last_step),
                     n + 1,
                     self.rejected(inbox),
@@ -591,24 +592,57 @@ impl Runner {
             &self.log,
             Some(&self.task),
         );
-        // The summary on the wire leaves out the episode list (the events stream carried every
-        // episode; the list alone can exceed a status message's size limit).
-        let summary = rep.as_ref().ok().map(|r| {
-            let mut brief = r.clone();
-            brief.events.episodes_truncated |= !brief.events.episodes.is_empty();
-            brief.events.episodes.clear();
-            serde_json::to_string(&brief).expect("report serializes")
-        });
+        // The report on the wire: the library's report in the protocol's terms (without the
+        // episode list: the events stream carried every episode).
+        let report = match &rep {
+            Ok(r) => match FinalReport::try_from(r) {
+                Ok(w) => Some(w),
+                Err(e) => {
+                    eprintln!("crawler-plant: the final report cannot go on the wire: {e}");
+                    None
+                }
+            },
+            Err(_) => None,
+        };
         let rejected = self.rejected(inbox);
         let message = format!(
             "finished at step {}; rejected actuation: {}",
             self.last_step,
             rejected.total()
         );
-        self.status(out, "finished", &message, self.last_step, rejected, summary);
+        self.status(
+            out,
+            ProcessState::Finished,
+            &message,
+            self.last_step,
+            rejected,
+            report,
+        );
         if rejected.total() > 0 {
             eprintln!("crawler-plant: rejected actuation messages: {rejected:?}");
         }
         Ok(Outcome::Finished(Box::new(rep?)))
+    }
+}
+
+/// What `plant` applied over its last communication step, as the protocol says it: the wave it
+/// is driven by, or its muscle-force field (N, one value per cell); `None` before any actuation
+/// (the first state of a run).
+pub fn applied(plant: &Plant) -> Option<Applied> {
+    match plant.drive() {
+        Drive::Idle => None,
+        Drive::Wave(w) => Some(Applied {
+            wave: Some(WaveMsg {
+                f0: w.f0,
+                k: w.k,
+                omega: w.omega,
+                phase: w.phase,
+            }),
+            field: None,
+        }),
+        Drive::Field => Some(Applied {
+            wave: None,
+            field: Some(plant.field().to_vec()),
+        }),
     }
 }

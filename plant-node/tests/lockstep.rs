@@ -15,7 +15,8 @@ use crawler_plant_node::checkpoint::Checkpoint;
 use crawler_plant_node::link::{Control, Feeder, Inbox, Outbox, Topic, INBOX_BYTES};
 use crawler_plant_node::runner::{Outcome, RunOptions, Runner};
 use crawler_protocol::{
-    decode, encode, Actuation, Rejections, State, Status, WaveMsg, PROTOCOL_VERSION,
+    decode, encode, Actuation, Applied, ProcessState, Rejections, State, Status, WaveMsg,
+    PROTOCOL_VERSION,
 };
 use crawler_transport::Network;
 
@@ -208,10 +209,20 @@ fn lockstep_under_the_scenarios_wave_is_bit_identical_to_simulate() {
     let result = finished(outcome);
     assert_eq!(result, result_of_simulate(&scenario()));
     let last = statuses.last().unwrap();
-    assert_eq!((last.state.as_str(), last.step), ("finished", last_step));
+    assert_eq!((last.state, last.step), (ProcessState::Finished, last_step));
     assert_eq!(last.rejected, Rejections::default());
-    let summary: serde_json::Value = serde_json::from_str(last.summary.as_ref().unwrap()).unwrap();
-    assert_eq!(summary["state_digest"], result.0.as_str());
+    let report = last
+        .report
+        .as_ref()
+        .expect("the finished status carries the report");
+    assert_eq!(report.state_digest, result.0);
+    assert_eq!(report.velocity.to_bits(), result.1);
+    assert_eq!(report.events.count, result.2);
+    assert_eq!(report.macro_steps, last_step);
+    // only the finished status carries it
+    assert!(statuses[..statuses.len() - 1]
+        .iter()
+        .all(|s| s.report.is_none() && s.state != ProcessState::Finished));
     assert!(
         !dir.path().join("run.ckpt").exists(),
         "a finished run writes no checkpoint"
@@ -265,7 +276,7 @@ fn hostile_answers_are_counted_by_cause_and_never_applied() {
     let (outcome, statuses) = h.run(runner);
     assert_eq!(finished(outcome), result_of_simulate(&scenario()));
     let last = statuses.last().unwrap();
-    assert_eq!(last.state, "finished");
+    assert_eq!(last.state, ProcessState::Finished);
     let k = HOSTILE_STEPS;
     assert_eq!(
         last.rejected,
@@ -310,7 +321,8 @@ fn a_controller_that_leaves_stops_the_run_and_resume_is_bit_identical() {
         "{reason}"
     );
     let last = statuses.last().unwrap();
-    assert_eq!((last.state.as_str(), last.step), ("failed", 2500));
+    assert_eq!((last.state, last.step), (ProcessState::Failed, 2500));
+    assert_eq!(last.report, None);
     assert!(
         last.message.contains("checkpoint written"),
         "{}",
@@ -356,8 +368,8 @@ fn without_a_controller_the_plant_times_out_and_writes_no_checkpoint() {
         o => panic!("{o:?}"),
     }
     assert!(!dir.path().join("run.ckpt").exists());
-    let states: Vec<&str> = statuses.iter().map(|s| s.state.as_str()).collect();
-    assert_eq!(states, ["waiting", "failed"]);
+    let states: Vec<ProcessState> = statuses.iter().map(|s| s.state).collect();
+    assert_eq!(states, [ProcessState::Waiting, ProcessState::Failed]);
 }
 
 #[test]
@@ -414,10 +426,92 @@ fn an_interrupt_stops_the_run_with_a_checkpoint() {
     };
     assert_eq!(exit, Exit::Interrupted);
     assert_eq!(reason, "interrupted at step 100");
-    assert_eq!(statuses.last().unwrap().state, "stopped");
+    assert_eq!(statuses.last().unwrap().state, ProcessState::Stopped);
     let ckpt = Checkpoint::load(&path).unwrap();
     assert_eq!(
         (ckpt.state.macro_step, ckpt.reason.as_str()),
         (100, reason.as_str())
     );
+}
+
+/// Every state says what the plant applied over the step before it: nothing at the first, then
+/// exactly the wave or the field the controller sent for that step (here a wave whose phase
+/// changes every step, alternating with a field that changes every step), also after a resume.
+#[test]
+fn every_state_carries_the_actuation_applied_over_the_step_before() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::Arc;
+    let dir = tempfile::tempdir().unwrap();
+    let opts = options(dir.path());
+    let wave = wave_msg(&opts.scenario);
+    let cells = opts.scenario.plant.numerics.cells;
+    // what controller `id` sends for step n
+    let actuation = move |n: u64| -> Applied {
+        if n.is_multiple_of(2) {
+            Applied {
+                wave: Some(WaveMsg {
+                    phase: 1e-3 * n as f64,
+                    ..wave
+                }),
+                field: None,
+            }
+        } else {
+            Applied {
+                wave: None,
+                field: Some(
+                    (0..cells)
+                        .map(|i| 0.2 * (0.1 * i as f64 + 0.01 * n as f64).sin())
+                        .collect(),
+                ),
+            }
+        }
+    };
+    let checked = Arc::new(AtomicU64::new(0));
+    let controller = |id: &'static str, first: u64, stop: u64, checked: Arc<AtomicU64>| {
+        move |s: &State| {
+            if s.step == first && first == 0 {
+                assert_eq!(s.applied, None, "nothing applied before the first state");
+            } else {
+                assert_eq!(
+                    s.applied.as_ref(),
+                    Some(&actuation(s.step - 1)),
+                    "state {} does not carry what was sent for step {}",
+                    s.step,
+                    s.step - 1
+                );
+                checked.fetch_add(1, Ordering::Relaxed);
+            }
+            if s.step == stop {
+                return Act::Then(Control::Interrupt);
+            }
+            let a = actuation(s.step);
+            Act::Send(vec![encode(&Actuation {
+                v: PROTOCOL_VERSION,
+                step: s.step,
+                controller: id.into(),
+                wave: a.wave,
+                field: a.field,
+            })])
+        }
+    };
+    let runner = Runner::new(opts.clone(), "plant".into()).unwrap();
+    let h = Harness::new("c1", true, controller("c1", 0, 300, checked.clone()));
+    let (outcome, _) = h.run(runner);
+    let Outcome::Stopped {
+        checkpoint: Some(path),
+        ..
+    } = outcome
+    else {
+        panic!("{outcome:?}")
+    };
+    assert_eq!(checked.load(Ordering::Relaxed), 300);
+    // resumed at step 300: its first state says what was applied over step 299
+    let resumed = RunOptions {
+        resume: Some(Checkpoint::load(&path).unwrap()),
+        ..opts
+    };
+    let runner = Runner::new(resumed, "plant".into()).unwrap();
+    let h = Harness::new("c2", true, controller("c2", 300, 400, checked.clone()));
+    let _ = h.run(runner);
+    assert_eq!(checked.load(Ordering::Relaxed), 401);
 }

@@ -20,13 +20,45 @@ pub enum Role {
 }
 
 impl Role {
-    /// The role's name in keys.
+    /// Every role.
+    pub const ALL: [Role; 3] = [Role::Plant, Role::Controller, Role::Bridge];
+
+    /// The role's name in keys and in [`crate::Status::role`].
     pub fn as_str(self) -> &'static str {
         match self {
             Role::Plant => "plant",
             Role::Controller => "controller",
             Role::Bridge => "bridge",
         }
+    }
+
+    /// The role named `name` (`"plant"`, `"controller"` or `"bridge"`).
+    pub fn parse(name: &str) -> Option<Role> {
+        Role::ALL.into_iter().find(|r| r.as_str() == name)
+    }
+}
+
+impl std::fmt::Display for Role {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// On the wire a role is its name, a lowercase string.
+impl serde::Serialize for Role {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Role {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        crate::messages::named(
+            d,
+            "status.role",
+            Role::parse,
+            "\"plant\", \"controller\" or \"bridge\"",
+        )
     }
 }
 

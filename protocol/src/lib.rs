@@ -9,6 +9,8 @@
 //!   ([`messages::encode`], [`messages::decode`]); any MessagePack library reads them.
 //! - [`messages::decode`] bounds the size, checks the version and validates every field, so a
 //!   decoded message never carries NaN, an infinite value or an inconsistent size.
+//! - Closed sets of values are enums that travel as their lowercase names: a status's
+//!   [`Role`] and [`ProcessState`], a task's [`TaskOutcome`].
 
 pub mod environment;
 pub mod error;
@@ -21,7 +23,8 @@ pub use error::ProtocolError;
 pub use keys::{validate_run_id, Role, RunKeys};
 pub use limits::RunLimits;
 pub use messages::{
-    decode, encode, Actuation, EpisodeMsg, Events, Message, Metrics, ModelInfo, ModelPrediction,
-    Prediction, Rejections, Series, State, Status, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,
-    PROTOCOL_VERSION,
+    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Message,
+    Metrics, ModelInfo, ModelPrediction, Prediction, ProcessState, Rejections, ReportWindow,
+    Series, State, Status, TaskOutcome, TaskResult, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,
+    MAX_SCENARIO_NAME_LEN, PROTOCOL_VERSION,
 };

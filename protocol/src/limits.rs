@@ -28,9 +28,10 @@ impl RunLimits {
         Self { cells }
     }
 
-    /// A `State`: three arrays of N float64 and one of N booleans, about 28 N bytes.
+    /// A `State`: three arrays of N float64 and one of N booleans, and the actuation applied
+    /// over the last step (at most a field of N float64), about 37 N bytes.
     pub fn state(&self) -> usize {
-        28 * self.cells + HEADER
+        37 * self.cells + HEADER
     }
 
     /// An `Actuation`: a wave, or a field of N float64, about 9 N bytes.
@@ -48,8 +49,9 @@ impl RunLimits {
         self.cells.max(1)
     }
 
-    /// A `Status`, `ModelInfo` or `Prediction`, whatever N: two free texts at their limit (a
-    /// status's message and summary) and room for the rest.
+    /// A `Status`, `ModelInfo` or `Prediction`, whatever N: two free texts at their limit and
+    /// room for the rest (a status holds one text, its message, and the plant's final report of
+    /// under 2 KiB).
     pub fn text_message() -> usize {
         2 * MAX_TEXT_LEN + 4 * HEADER
     }
@@ -88,7 +90,10 @@ impl RunLimits {
 mod tests {
     use super::*;
     use crate::messages::{encode, EpisodeMsg, Events, Metrics, State, Status};
-    use crate::{Actuation, Rejections};
+    use crate::{
+        Actuation, Applied, EpisodeStats, FinalReport, ProcessState, Rejections, ReportWindow,
+        Role, TaskOutcome, TaskResult, WaveMsg, MAX_SCENARIO_NAME_LEN,
+    };
 
     fn id() -> String {
         "x".repeat(MAX_ID_LEN)
@@ -111,9 +116,27 @@ mod tests {
                 mean_speed: big,
                 input_power: big,
                 last: true,
+                applied: Some(Applied {
+                    wave: None,
+                    field: Some(vec![big; n]),
+                }),
             };
             let s = encode(&state).len();
             assert!(s <= l.state(), "state {s} > {}", l.state());
+            // an applied wave is smaller than an applied field
+            let wave = State {
+                applied: Some(Applied {
+                    wave: Some(WaveMsg {
+                        f0: big,
+                        k: big,
+                        omega: big,
+                        phase: big,
+                    }),
+                    field: None,
+                }),
+                ..state.clone()
+            };
+            assert!(encode(&wave).len() <= l.state());
             // the bound is tight: within a header of the real size
             assert!(
                 l.state() - s < HEADER,
@@ -145,11 +168,64 @@ mod tests {
             assert!(e <= l.events(), "events {e} > {}", l.events());
             assert!(l.largest() >= l.state().max(l.events()));
         }
+        let big = -1.234_567_890_123_456_7e300;
+        let report = FinalReport {
+            scenario: "s".repeat(MAX_SCENARIO_NAME_LEN),
+            velocity: big,
+            power: big,
+            mileage: Some(big),
+            max_stress: big,
+            max_strain: big,
+            stuck_fraction: big,
+            mean_friction_selection: big,
+            dissipation: big,
+            identity_velocity: big,
+            momentum_residual: Some(big),
+            events: EpisodeStats {
+                count: u64::MAX,
+                per_node_per_period: big,
+                mean_duration: big,
+                min_duration: big,
+            },
+            window: ReportWindow {
+                start: big,
+                end: big,
+                periods: big,
+                steady: true,
+                whole_run: true,
+            },
+            cells: u64::MAX,
+            dt: big,
+            step: big,
+            courant: big,
+            dx: big,
+            cells_per_wavelength: Some(big),
+            steps: u64::MAX,
+            macro_steps: u64::MAX,
+            t_end: big,
+            state_digest: "f".repeat(8),
+            task: Some(TaskResult {
+                outcome: TaskOutcome::EnergyExhausted,
+                distance_target: big,
+                distance: big,
+                time_to_distance: Some(big),
+                energy_budget: big,
+                energy_used: big,
+                energy_at_distance: Some(big),
+                energy_exhausted_at: Some(big),
+                sigma_max: big,
+                max_stress: big,
+                time_over_sigma_max: big,
+                run_time: big,
+            }),
+        };
+        let r = rmp_serde::to_vec_named(&report).unwrap().len();
+        assert!(r < 2048, "a final report takes {r} bytes");
         let status = Status {
             v: u16::MAX,
-            role: id(),
+            role: Role::Controller,
             id: id(),
-            state: "finished".into(),
+            state: ProcessState::Finished,
             message: "m".repeat(MAX_TEXT_LEN),
             step: u64::MAX,
             rejected: Rejections {
@@ -162,7 +238,7 @@ mod tests {
                 future: u64::MAX,
                 overflow: u64::MAX,
             },
-            summary: Some("s".repeat(MAX_TEXT_LEN)),
+            report: Some(report),
         };
         assert!(encode(&status).len() <= RunLimits::text_message());
         let n = crate::MAX_ENVIRONMENT_PIECES;

@@ -4,13 +4,14 @@
 //! MessagePack library decodes it to a dictionary; every message carries `v`, the protocol
 //! version. Arrays of numbers are MessagePack arrays of float64. See `docs/protocol.md`.
 
-use serde::de::DeserializeOwned;
+use serde::de::{DeserializeOwned, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
 
 use crate::error::ProtocolError;
+use crate::keys::Role;
 
 /// Protocol version spoken by this build.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Largest payload accepted on any key, bytes (checked before decoding).
 pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
@@ -22,7 +23,7 @@ pub const MAX_CELLS: usize = 1 << 20;
 /// Longest identifier or name accepted in a message.
 pub const MAX_ID_LEN: usize = 128;
 
-/// Longest free text (status messages, summaries) accepted, bytes.
+/// Longest free text (status messages, model descriptions) accepted, bytes.
 pub const MAX_TEXT_LEN: usize = 1 << 20;
 
 /// A message of the protocol.
@@ -118,6 +119,72 @@ fn text(field: &str, s: &str) -> Result<(), ProtocolError> {
     }
 }
 
+fn non_negative(field: &str, x: f64) -> Result<(), ProtocolError> {
+    if x.is_finite() && x >= 0.0 {
+        Ok(())
+    } else {
+        Err(ProtocolError::invalid(field, x, "a finite number >= 0"))
+    }
+}
+
+fn positive(field: &str, x: f64) -> Result<(), ProtocolError> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(ProtocolError::invalid(field, x, "a finite number > 0"))
+    }
+}
+
+fn within(field: &str, x: f64, lo: f64, hi: f64) -> Result<(), ProtocolError> {
+    if x.is_finite() && (lo..=hi).contains(&x) {
+        Ok(())
+    } else {
+        Err(ProtocolError::invalid(
+            field,
+            x,
+            format!("a finite number from {lo} to {hi}"),
+        ))
+    }
+}
+
+/// Deserializes a string naming one value of an enum (`parse` finds it); anything else is refused
+/// naming `field`, the value received (its first 32 characters) and what is `allowed`.
+pub(crate) fn named<'de, D, T>(
+    d: D,
+    field: &'static str,
+    parse: fn(&str) -> Option<T>,
+    allowed: &'static str,
+) -> Result<T, D::Error>
+where
+    D: Deserializer<'de>,
+{
+    struct Named<T> {
+        field: &'static str,
+        parse: fn(&str) -> Option<T>,
+        allowed: &'static str,
+    }
+    impl<T> Visitor<'_> for Named<T> {
+        type Value = T;
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            write!(f, "{} as a string, one of {}", self.field, self.allowed)
+        }
+        fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<T, E> {
+            (self.parse)(v).ok_or_else(|| {
+                E::custom(ProtocolError::invalid(
+                    self.field,
+                    format!("{:?}", v.chars().take(32).collect::<String>()),
+                    self.allowed,
+                ))
+            })
+        }
+    }
+    d.deserialize_str(Named {
+        field,
+        parse,
+        allowed,
+    })
+}
+
 /// The plant's state at the start of communication step `step` (time `t0 + step H`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct State {
@@ -143,6 +210,45 @@ pub struct State {
     pub input_power: f64,
     /// True for the last state of the run (no actuation expected).
     pub last: bool,
+    /// The actuation the plant applied over the step that ended here, from `t0 + (step - 1) H`
+    /// to `t0 + step H` (the one it admitted for step `step - 1`); `None` before any was applied
+    /// (the first state of a run).
+    pub applied: Option<Applied>,
+}
+
+/// What the plant applied over one communication step: exactly one of `wave` and `field`, as in
+/// the [`Actuation`] it admitted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Applied {
+    /// The travelling wave, evaluated continuously over the step.
+    pub wave: Option<WaveMsg>,
+    /// Muscle force at the half nodes, N (one value per cell), held over the step.
+    pub field: Option<Vec<f64>>,
+}
+
+impl Applied {
+    /// Checks the applied actuation of a body of `cells` cells; `field` names it in errors
+    /// (`state.applied`).
+    fn validate(&self, field: &str, cells: usize) -> Result<(), ProtocolError> {
+        match (&self.wave, &self.field) {
+            (Some(w), None) => w.validate(&format!("{field}.wave")),
+            (None, Some(f)) => {
+                if f.len() != cells {
+                    return Err(ProtocolError::invalid(
+                        format!("{field}.field"),
+                        format!("{} values", f.len()),
+                        format!("{cells} values, one per cell (as many as state.u)"),
+                    ));
+                }
+                finite_all(&format!("{field}.field"), f)
+            }
+            _ => Err(ProtocolError::invalid(
+                field,
+                "wave and field both given or both missing",
+                "exactly one of wave and field",
+            )),
+        }
+    }
 }
 
 impl Message for State {
@@ -172,7 +278,11 @@ impl Message for State {
         finite("state.input_power", self.input_power)?;
         finite_all("state.u", &self.u)?;
         finite_all("state.vel", &self.vel)?;
-        finite_all("state.tension", &self.tension)
+        finite_all("state.tension", &self.tension)?;
+        match &self.applied {
+            Some(a) => a.validate("state.applied", n),
+            None => Ok(()),
+        }
     }
 }
 
@@ -420,29 +530,102 @@ impl Rejections {
     }
 }
 
+/// The life-cycle state a [`Status`] reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ProcessState {
+    /// Started, waiting for its peers (the plant: for a controller to join).
+    Waiting,
+    /// Stepping.
+    Running,
+    /// The run reached its end (the plant: its last step; it sends its [`FinalReport`]).
+    Finished,
+    /// Ended on an error.
+    Failed,
+    /// Ended early on purpose or for want of a peer (interrupted, controller lost, timeout).
+    Stopped,
+}
+
+impl ProcessState {
+    /// Every state.
+    pub const ALL: [ProcessState; 5] = [
+        ProcessState::Waiting,
+        ProcessState::Running,
+        ProcessState::Finished,
+        ProcessState::Failed,
+        ProcessState::Stopped,
+    ];
+
+    /// The state's name on the wire: `"waiting"`, `"running"`, `"finished"`, `"failed"` or
+    /// `"stopped"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProcessState::Waiting => "waiting",
+            ProcessState::Running => "running",
+            ProcessState::Finished => "finished",
+            ProcessState::Failed => "failed",
+            ProcessState::Stopped => "stopped",
+        }
+    }
+
+    /// The state named `name`.
+    pub fn parse(name: &str) -> Option<ProcessState> {
+        ProcessState::ALL.into_iter().find(|s| s.as_str() == name)
+    }
+
+    /// True for the states that end a process's run: finished, failed, stopped.
+    pub fn is_terminal(self) -> bool {
+        matches!(
+            self,
+            ProcessState::Finished | ProcessState::Failed | ProcessState::Stopped
+        )
+    }
+}
+
+impl std::fmt::Display for ProcessState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// On the wire a state is its name, a lowercase string.
+impl Serialize for ProcessState {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> Deserialize<'de> for ProcessState {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        named(
+            d,
+            "status.state",
+            ProcessState::parse,
+            "\"waiting\", \"running\", \"finished\", \"failed\" or \"stopped\"",
+        )
+    }
+}
+
 /// Life-cycle status of a process.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Status {
     /// Protocol version.
     pub v: u16,
-    /// "plant", "controller" or "bridge".
-    pub role: String,
+    /// Who sends it: `"plant"`, `"controller"` or `"bridge"` on the wire.
+    pub role: Role,
     /// The process's id.
     pub id: String,
-    /// "waiting", "running", "finished", "failed" or "stopped".
-    pub state: String,
+    /// `"waiting"`, `"running"`, `"finished"`, `"failed"` or `"stopped"` on the wire.
+    pub state: ProcessState,
     /// Human-readable detail.
     pub message: String,
     /// Current communication step.
     pub step: u64,
     /// Rejected actuation so far (plant).
     pub rejected: Rejections,
-    /// Final report as JSON text (plant, when finished).
-    pub summary: Option<String>,
+    /// The plant's final report: only in a plant's `finished` status (and `None` if the plant
+    /// could not compute one).
+    pub report: Option<FinalReport>,
 }
-
-/// Allowed values of [`Status::state`].
-pub const STATUS_STATES: &[&str] = &["waiting", "running", "finished", "failed", "stopped"];
 
 impl Message for Status {
     const NAME: &'static str = "status";
@@ -450,20 +633,330 @@ impl Message for Status {
         self.v
     }
     fn validate(&self) -> Result<(), ProtocolError> {
-        short("status.role", &self.role)?;
         short("status.id", &self.id)?;
-        if !STATUS_STATES.contains(&self.state.as_str()) {
-            return Err(ProtocolError::invalid(
-                "status.state",
-                &self.state,
-                STATUS_STATES.join(", "),
-            ));
-        }
         text("status.message", &self.message)?;
-        if let Some(s) = &self.summary {
-            text("status.summary", s)?;
+        if let Some(r) = &self.report {
+            if (self.role, self.state) != (Role::Plant, ProcessState::Finished) {
+                return Err(ProtocolError::invalid(
+                    "status.report",
+                    format!("a report in a {} status of the {}", self.state, self.role),
+                    "a report only in the plant's finished status",
+                ));
+            }
+            r.validate()?;
         }
         Ok(())
+    }
+}
+
+/// How a run did against the scenario's task (travel `D` on the energy `J0` without exceeding
+/// `sigma_max`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TaskOutcome {
+    /// The centre of mass travelled `D` within the energy budget.
+    Reached,
+    /// The actuator spent the budget before `D` was reached.
+    EnergyExhausted,
+    /// The run ended with neither.
+    TimeUp,
+}
+
+impl TaskOutcome {
+    /// Every outcome.
+    pub const ALL: [TaskOutcome; 3] = [
+        TaskOutcome::Reached,
+        TaskOutcome::EnergyExhausted,
+        TaskOutcome::TimeUp,
+    ];
+
+    /// The outcome on the wire, in the words of the plant's report: `"reached"`,
+    /// `"energy exhausted"` or `"time up"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TaskOutcome::Reached => "reached",
+            TaskOutcome::EnergyExhausted => "energy exhausted",
+            TaskOutcome::TimeUp => "time up",
+        }
+    }
+
+    /// The outcome named `name`.
+    pub fn parse(name: &str) -> Option<TaskOutcome> {
+        TaskOutcome::ALL.into_iter().find(|o| o.as_str() == name)
+    }
+}
+
+impl std::fmt::Display for TaskOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl Serialize for TaskOutcome {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> Deserialize<'de> for TaskOutcome {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        named(
+            d,
+            "report.task.outcome",
+            TaskOutcome::parse,
+            "\"reached\", \"energy exhausted\" or \"time up\"",
+        )
+    }
+}
+
+/// The task's result in a [`FinalReport`] (SI units; times from the start of the run).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TaskResult {
+    /// How it ended.
+    pub outcome: TaskOutcome,
+    /// The task's distance D, m (> 0).
+    pub distance_target: f64,
+    /// Distance the centre of mass travelled, m.
+    pub distance: f64,
+    /// Time until D was reached, s (>= 0); only when reached.
+    pub time_to_distance: Option<f64>,
+    /// The task's energy budget J0, J (> 0).
+    pub energy_budget: f64,
+    /// Net actuator work over the run, J.
+    pub energy_used: f64,
+    /// Net actuator work when D was reached, J; only when reached.
+    pub energy_at_distance: Option<f64>,
+    /// Time until J0 was spent, s (>= 0); only when the energy was exhausted.
+    pub energy_exhausted_at: Option<f64>,
+    /// The stress limit sigma_max, Pa (> 0).
+    pub sigma_max: f64,
+    /// Largest stress over the run, Pa (>= 0).
+    pub max_stress: f64,
+    /// Time during which the stress exceeded sigma_max, s (>= 0).
+    pub time_over_sigma_max: f64,
+    /// Length of the run, s (>= 0).
+    pub run_time: f64,
+}
+
+impl TaskResult {
+    fn validate(&self) -> Result<(), ProtocolError> {
+        positive("report.task.distance_target", self.distance_target)?;
+        finite("report.task.distance", self.distance)?;
+        positive("report.task.energy_budget", self.energy_budget)?;
+        finite("report.task.energy_used", self.energy_used)?;
+        positive("report.task.sigma_max", self.sigma_max)?;
+        non_negative("report.task.max_stress", self.max_stress)?;
+        non_negative("report.task.time_over_sigma_max", self.time_over_sigma_max)?;
+        non_negative("report.task.run_time", self.run_time)?;
+        if let Some(t) = self.time_to_distance {
+            non_negative("report.task.time_to_distance", t)?;
+        }
+        if let Some(e) = self.energy_at_distance {
+            finite("report.task.energy_at_distance", e)?;
+        }
+        if let Some(t) = self.energy_exhausted_at {
+            non_negative("report.task.energy_exhausted_at", t)?;
+        }
+        // the outcome and the times that decide it agree
+        let reached = (
+            self.time_to_distance.is_some(),
+            self.energy_at_distance.is_some(),
+            self.energy_exhausted_at.is_some(),
+        );
+        let (expected, allowed) = match self.outcome {
+            TaskOutcome::Reached => (
+                (true, true, false),
+                "time_to_distance and energy_at_distance, and no energy_exhausted_at, when reached",
+            ),
+            TaskOutcome::EnergyExhausted => (
+                (false, false, true),
+                "energy_exhausted_at only, when the energy was exhausted",
+            ),
+            TaskOutcome::TimeUp => (
+                (false, false, false),
+                "none of time_to_distance, energy_at_distance, energy_exhausted_at at time up",
+            ),
+        };
+        if reached != expected {
+            return Err(ProtocolError::invalid(
+                "report.task",
+                format!(
+                    "outcome {:?} with time_to_distance {:?}, energy_at_distance {:?}, energy_exhausted_at {:?}",
+                    self.outcome.as_str(),
+                    self.time_to_distance,
+                    self.energy_at_distance,
+                    self.energy_exhausted_at
+                ),
+                allowed,
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Stick-slip statistics of a [`FinalReport`]'s window (the episodes themselves went out in
+/// [`Events`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeStats {
+    /// Episodes that ended in the window.
+    pub count: u64,
+    /// Episodes per node per forcing period (>= 0).
+    pub per_node_per_period: f64,
+    /// Mean episode duration, s (>= 0; 0 without episodes).
+    pub mean_duration: f64,
+    /// Shortest stick phase counted as an episode, s (>= 0).
+    pub min_duration: f64,
+}
+
+/// The averaging window of a [`FinalReport`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ReportWindow {
+    /// Start, s.
+    pub start: f64,
+    /// End, s (>= start).
+    pub end: f64,
+    /// Forcing periods (averaging blocks) in it (>= 0).
+    pub periods: f64,
+    /// True for a steady window (whole periods at least `settle` after the last change of
+    /// actuation); false when the actuation changed later: the metrics are then run averages.
+    pub steady: bool,
+    /// True when the run ended before its transient did (a task reached early): the metrics are
+    /// averages over the whole run.
+    pub whole_run: bool,
+}
+
+/// Longest [`FinalReport::scenario`], bytes.
+pub const MAX_SCENARIO_NAME_LEN: usize = MAX_ID_LEN;
+
+/// The plant's final report of a finished run, in its `finished` [`Status`]: the metrics of its
+/// window (steady, or run averages: see `window`), the stick-slip statistics, the grid and the
+/// clock, the state digest and the task's result. SI units. The plant library's report converts
+/// into it in one place (`crawler_plant::simulate`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FinalReport {
+    /// Scenario name (at most [`MAX_SCENARIO_NAME_LEN`] bytes).
+    pub scenario: String,
+    /// Mean speed V, m/s.
+    pub velocity: f64,
+    /// Input power P over the body, W.
+    pub power: f64,
+    /// Mileage |V| / P, m/J; `None` when it is not a number (P = 0).
+    pub mileage: Option<f64>,
+    /// sup T / A_c over the window, Pa (>= 0).
+    pub max_stress: f64,
+    /// max |u_x| over the window (>= 0).
+    pub max_strain: f64,
+    /// Share of node-time stuck, 0 to 1.
+    pub stuck_fraction: f64,
+    /// Mean friction selection <s>, stuck points included, -1 to 1.
+    pub mean_friction_selection: f64,
+    /// Power dissipated by friction, W.
+    pub dissipation: f64,
+    /// V predicted by the identity `eps c_d (n_F - <s>) / c_v`, m/s.
+    pub identity_velocity: f64,
+    /// Relative residual of the scheme's discrete momentum balance over the window (>= 0);
+    /// `None` when it is not a number (a body at rest).
+    pub momentum_residual: Option<f64>,
+    /// Stick-slip statistics.
+    pub events: EpisodeStats,
+    /// The averaging window.
+    pub window: ReportWindow,
+    /// Number of cells N.
+    pub cells: u64,
+    /// Internal step dt, s (> 0).
+    pub dt: f64,
+    /// Communication step H, s (> 0).
+    pub step: f64,
+    /// Achieved Courant number `c dt / dx` (> 0).
+    pub courant: f64,
+    /// Cell size dx, m (> 0).
+    pub dx: f64,
+    /// Cells per wavelength of the wave in force at the end (`None` under a field).
+    pub cells_per_wavelength: Option<f64>,
+    /// Internal steps taken.
+    pub steps: u64,
+    /// Communication steps taken.
+    pub macro_steps: u64,
+    /// End time, s.
+    pub t_end: f64,
+    /// CRC-32 of the final displacement and velocity bits, 8 lowercase hex digits: equal
+    /// digests, identical trajectories.
+    pub state_digest: String,
+    /// The run against the scenario's task, if the plant followed one.
+    pub task: Option<TaskResult>,
+}
+
+impl FinalReport {
+    /// Checks every field: finite numbers in their ranges, a consistent window and task.
+    pub fn validate(&self) -> Result<(), ProtocolError> {
+        if self.scenario.len() > MAX_SCENARIO_NAME_LEN {
+            return Err(ProtocolError::invalid(
+                "report.scenario",
+                format!("{} bytes", self.scenario.len()),
+                format!("at most {MAX_SCENARIO_NAME_LEN} bytes"),
+            ));
+        }
+        for (name, x) in [
+            ("velocity", self.velocity),
+            ("power", self.power),
+            ("dissipation", self.dissipation),
+            ("identity_velocity", self.identity_velocity),
+            ("t_end", self.t_end),
+        ] {
+            finite(&format!("report.{name}"), x)?;
+        }
+        if let Some(m) = self.mileage {
+            finite("report.mileage", m)?;
+        }
+        non_negative("report.max_stress", self.max_stress)?;
+        non_negative("report.max_strain", self.max_strain)?;
+        within("report.stuck_fraction", self.stuck_fraction, 0.0, 1.0)?;
+        within(
+            "report.mean_friction_selection",
+            self.mean_friction_selection,
+            -1.0,
+            1.0,
+        )?;
+        if let Some(r) = self.momentum_residual {
+            non_negative("report.momentum_residual", r)?;
+        }
+        let e = &self.events;
+        non_negative("report.events.per_node_per_period", e.per_node_per_period)?;
+        non_negative("report.events.mean_duration", e.mean_duration)?;
+        non_negative("report.events.min_duration", e.min_duration)?;
+        let w = &self.window;
+        finite("report.window.start", w.start)?;
+        finite("report.window.end", w.end)?;
+        if w.end < w.start {
+            return Err(ProtocolError::invalid(
+                "report.window.end",
+                w.end,
+                format!("at least report.window.start = {}", w.start),
+            ));
+        }
+        non_negative("report.window.periods", w.periods)?;
+        cells(
+            "report.cells",
+            usize::try_from(self.cells).unwrap_or(usize::MAX),
+        )?;
+        positive("report.dt", self.dt)?;
+        positive("report.step", self.step)?;
+        positive("report.courant", self.courant)?;
+        positive("report.dx", self.dx)?;
+        if let Some(c) = self.cells_per_wavelength {
+            positive("report.cells_per_wavelength", c)?;
+        }
+        let d = &self.state_digest;
+        if !(d.len() == 8 && d.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))) {
+            return Err(ProtocolError::invalid(
+                "report.state_digest",
+                format!("{:?}", d.chars().take(32).collect::<String>()),
+                "8 lowercase hex digits",
+            ));
+        }
+        match &self.task {
+            Some(t) => t.validate(),
+            None => Ok(()),
+        }
     }
 }
 
@@ -676,5 +1169,363 @@ impl Message for ModelInfo {
             ));
         }
         text("model.model_description", &self.model_description)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(n: usize, applied: Option<Applied>) -> State {
+        State {
+            v: PROTOCOL_VERSION,
+            step: 4,
+            time: 0.004,
+            controller: "c".into(),
+            u: vec![0.0; n],
+            vel: vec![0.0; n],
+            tension: vec![0.0; n],
+            stuck: vec![false; n],
+            mean_speed: 0.0,
+            input_power: 0.0,
+            last: false,
+            applied,
+        }
+    }
+
+    fn wave() -> WaveMsg {
+        WaveMsg {
+            f0: 0.5,
+            k: 6.25,
+            omega: 74.0,
+            phase: 0.25,
+        }
+    }
+
+    fn applied_wave(w: WaveMsg) -> Option<Applied> {
+        Some(Applied {
+            wave: Some(w),
+            field: None,
+        })
+    }
+
+    fn applied_field(f: Vec<f64>) -> Option<Applied> {
+        Some(Applied {
+            wave: None,
+            field: Some(f),
+        })
+    }
+
+    /// The error of decoding `m`, as text (panics if it decodes).
+    fn refused<M: Message + std::fmt::Debug>(m: &M) -> String {
+        match decode::<M>(&encode(m)) {
+            Ok(m) => panic!("{m:?} decoded"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    fn round_trip<M: Message + PartialEq + std::fmt::Debug>(m: &M) {
+        let back: M = decode(&encode(m)).unwrap();
+        assert_eq!(&back, m);
+    }
+
+    #[test]
+    fn a_state_carries_the_applied_wave_or_field_and_nothing_else() {
+        round_trip(&state(3, None));
+        round_trip(&state(3, applied_wave(wave())));
+        round_trip(&state(3, applied_field(vec![0.5, -0.5, 0.0])));
+        for (applied, needle) in [
+            (
+                applied_field(vec![0.5, f64::NAN, 0.0]),
+                "invalid state.applied.field[1] = NaN: allowed finite numbers",
+            ),
+            (
+                applied_field(vec![0.5, f64::INFINITY, 0.0]),
+                "state.applied.field[1] = inf",
+            ),
+            (
+                applied_field(vec![0.5, 0.5]),
+                "invalid state.applied.field = 2 values: allowed 3 values, one per cell",
+            ),
+            (
+                applied_field(vec![0.5; 4]),
+                "state.applied.field = 4 values",
+            ),
+            (
+                Some(Applied {
+                    wave: Some(wave()),
+                    field: Some(vec![0.0; 3]),
+                }),
+                "invalid state.applied = wave and field both given or both missing: allowed exactly one of wave and field",
+            ),
+            (
+                Some(Applied {
+                    wave: None,
+                    field: None,
+                }),
+                "exactly one of wave and field",
+            ),
+            (
+                applied_wave(WaveMsg {
+                    omega: f64::NAN,
+                    ..wave()
+                }),
+                "invalid state.applied.wave.omega = NaN",
+            ),
+            (
+                applied_wave(WaveMsg { k: 0.0, ..wave() }),
+                "invalid state.applied.wave.k = 0: allowed k > 0 (rad/m)",
+            ),
+            (
+                applied_wave(WaveMsg { f0: -1.0, ..wave() }),
+                "state.applied.wave.f0 = -1",
+            ),
+        ] {
+            let err = refused(&state(3, applied));
+            assert!(err.contains(needle), "{needle:?} not in {err:?}");
+        }
+    }
+
+    pub(crate) fn report() -> FinalReport {
+        FinalReport {
+            scenario: "paper".into(),
+            velocity: 0.049,
+            power: 4.73,
+            mileage: Some(0.0103),
+            max_stress: 36300.0,
+            max_strain: 0.0026,
+            stuck_fraction: 0.04,
+            mean_friction_selection: -0.5,
+            dissipation: 4.73,
+            identity_velocity: 0.049,
+            momentum_residual: Some(1e-15),
+            events: EpisodeStats {
+                count: 12,
+                per_node_per_period: 0.5,
+                mean_duration: 0.002,
+                min_duration: 0.0005,
+            },
+            window: ReportWindow {
+                start: 5.0,
+                end: 8.0,
+                periods: 35.3,
+                steady: true,
+                whole_run: false,
+            },
+            cells: 256,
+            dt: 1e-5,
+            step: 1e-3,
+            courant: 1.0,
+            dx: 1.0 / 256.0,
+            cells_per_wavelength: Some(256.0),
+            steps: 800_000,
+            macro_steps: 8000,
+            t_end: 8.0,
+            state_digest: "4832f1ec".into(),
+            task: Some(TaskResult {
+                outcome: TaskOutcome::Reached,
+                distance_target: 1.0,
+                distance: 1.0,
+                time_to_distance: Some(7.5),
+                energy_budget: 20.0,
+                energy_used: 19.0,
+                energy_at_distance: Some(18.5),
+                energy_exhausted_at: None,
+                sigma_max: 1e5,
+                max_stress: 4e4,
+                time_over_sigma_max: 0.0,
+                run_time: 8.0,
+            }),
+        }
+    }
+
+    fn finished(report: Option<FinalReport>) -> Status {
+        Status {
+            v: PROTOCOL_VERSION,
+            role: Role::Plant,
+            id: "p".into(),
+            state: ProcessState::Finished,
+            message: "finished".into(),
+            step: 8000,
+            rejected: Rejections::default(),
+            report,
+        }
+    }
+
+    #[test]
+    fn the_final_report_is_typed_and_round_trips() {
+        round_trip(&finished(Some(report())));
+        round_trip(&finished(None));
+        let mut r = report();
+        r.mileage = None; // P = 0
+        r.momentum_residual = None;
+        r.cells_per_wavelength = None;
+        r.task = None;
+        round_trip(&finished(Some(r)));
+        for outcome in [TaskOutcome::EnergyExhausted, TaskOutcome::TimeUp] {
+            let mut r = report();
+            let t = r.task.as_mut().unwrap();
+            t.outcome = outcome;
+            t.time_to_distance = None;
+            t.energy_at_distance = None;
+            t.energy_exhausted_at = (outcome == TaskOutcome::EnergyExhausted).then_some(6.5);
+            round_trip(&finished(Some(r)));
+        }
+    }
+
+    #[test]
+    fn every_field_of_the_final_report_is_checked_and_named() {
+        type Edit = fn(&mut FinalReport);
+        let cases: [(Edit, &str); 22] = [
+            (
+                |r| r.velocity = f64::NAN,
+                "invalid report.velocity = NaN: allowed a finite number",
+            ),
+            (|r| r.power = f64::INFINITY, "report.power = inf"),
+            (|r| r.mileage = Some(f64::NAN), "report.mileage = NaN"),
+            (
+                |r| r.max_stress = -1.0,
+                "invalid report.max_stress = -1: allowed a finite number >= 0",
+            ),
+            (|r| r.max_strain = f64::NAN, "report.max_strain = NaN"),
+            (
+                |r| r.stuck_fraction = 1.5,
+                "invalid report.stuck_fraction = 1.5: allowed a finite number from 0 to 1",
+            ),
+            (
+                |r| r.mean_friction_selection = -1.01,
+                "report.mean_friction_selection = -1.01",
+            ),
+            (
+                |r| r.momentum_residual = Some(f64::INFINITY),
+                "report.momentum_residual = inf",
+            ),
+            (
+                |r| r.events.mean_duration = -0.1,
+                "report.events.mean_duration = -0.1",
+            ),
+            (
+                |r| r.window.end = 4.0,
+                "invalid report.window.end = 4: allowed at least report.window.start = 5",
+            ),
+            (
+                |r| r.window.periods = f64::NAN,
+                "report.window.periods = NaN",
+            ),
+            (|r| r.cells = 0, "report.cells = 0 values"),
+            (
+                |r| r.dt = 0.0,
+                "invalid report.dt = 0: allowed a finite number > 0",
+            ),
+            (|r| r.courant = f64::NAN, "report.courant = NaN"),
+            (
+                |r| r.cells_per_wavelength = Some(-2.0),
+                "report.cells_per_wavelength = -2",
+            ),
+            (|r| r.t_end = f64::NEG_INFINITY, "report.t_end = -inf"),
+            (
+                |r| r.state_digest = "forged".into(),
+                "invalid report.state_digest = \"forged\": allowed 8 lowercase hex digits",
+            ),
+            (
+                |r| r.scenario = "s".repeat(MAX_SCENARIO_NAME_LEN + 1),
+                "report.scenario = 129 bytes",
+            ),
+            (
+                |r| r.task.as_mut().unwrap().sigma_max = 0.0,
+                "report.task.sigma_max = 0",
+            ),
+            (
+                |r| r.task.as_mut().unwrap().energy_used = f64::NAN,
+                "report.task.energy_used = NaN",
+            ),
+            (
+                |r| r.task.as_mut().unwrap().time_to_distance = None,
+                "invalid report.task = outcome \"reached\"",
+            ),
+            (
+                |r| r.task.as_mut().unwrap().outcome = TaskOutcome::TimeUp,
+                "allowed none of time_to_distance",
+            ),
+        ];
+        for (edit, needle) in cases {
+            let mut r = report();
+            edit(&mut r);
+            let err = refused(&finished(Some(r)));
+            assert!(err.contains(needle), "{needle:?} not in {err:?}");
+        }
+    }
+
+    #[test]
+    fn only_the_plants_finished_status_carries_a_report() {
+        for (role, state) in [
+            (Role::Plant, ProcessState::Running),
+            (Role::Plant, ProcessState::Failed),
+            (Role::Plant, ProcessState::Stopped),
+            (Role::Controller, ProcessState::Finished),
+            (Role::Bridge, ProcessState::Finished),
+        ] {
+            let s = Status {
+                role,
+                state,
+                ..finished(Some(report()))
+            };
+            let err = refused(&s);
+            assert!(
+                err.contains(&format!(
+                    "invalid status.report = a report in a {state} status of the {role}: allowed a report only in the plant's finished status"
+                )),
+                "{err}"
+            );
+            round_trip(&Status { report: None, ..s });
+        }
+    }
+
+    #[test]
+    fn roles_states_and_outcomes_travel_as_their_lowercase_names() {
+        let bytes = encode(&finished(Some(report())));
+        let text = String::from_utf8_lossy(&bytes);
+        for name in ["plant", "finished", "reached"] {
+            assert!(text.contains(name), "{name} not in {text:?}");
+        }
+        for role in Role::ALL {
+            assert_eq!(Role::parse(role.as_str()), Some(role));
+        }
+        for state in ProcessState::ALL {
+            assert_eq!(ProcessState::parse(state.as_str()), Some(state));
+        }
+        for o in TaskOutcome::ALL {
+            assert_eq!(TaskOutcome::parse(&o.to_string()), Some(o));
+        }
+        assert!(ProcessState::Finished.is_terminal() && !ProcessState::Running.is_terminal());
+        // anything else is refused, naming the field, the value and what is allowed
+        let forged = |from: &[u8], to: &[u8]| {
+            let i = bytes
+                .windows(from.len())
+                .position(|w| w == from)
+                .expect("present");
+            let mut b = bytes.clone();
+            b.splice(i..i + from.len(), to.iter().copied());
+            decode::<Status>(&b).unwrap_err().to_string()
+        };
+        let err = forged(b"\xa5plant", b"\xa5plans");
+        assert!(
+            err.contains(
+                "invalid status.role = \"plans\": allowed \"plant\", \"controller\" or \"bridge\""
+            ),
+            "{err}"
+        );
+        let err = forged(b"\xa8finished", b"\xa8FINISHED");
+        assert!(
+            err.contains("invalid status.state = \"FINISHED\": allowed \"waiting\", \"running\""),
+            "{err}"
+        );
+        let err = forged(b"\xa7reached", b"\xa7reaches");
+        assert!(
+            err.contains("invalid report.task.outcome = \"reaches\""),
+            "{err}"
+        );
+        let err = forged(b"\xa5plant", b"\x05");
+        assert!(err.contains("status.role as a string"), "{err}");
     }
 }

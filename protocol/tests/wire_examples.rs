@@ -5,8 +5,9 @@
 //! prints the dumps (to refresh the document after a deliberate change of the protocol).
 
 use crawler_protocol::{
-    decode, encode, Actuation, EpisodeMsg, Events, Message, Metrics, ModelInfo, ModelPrediction,
-    Prediction, Rejections, Series, State, Status, WaveMsg, PROTOCOL_VERSION,
+    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Message,
+    Metrics, ModelInfo, ModelPrediction, Prediction, ProcessState, Rejections, ReportWindow, Role,
+    Series, State, Status, TaskOutcome, TaskResult, WaveMsg, PROTOCOL_VERSION,
 };
 
 const V: u16 = PROTOCOL_VERSION;
@@ -33,6 +34,21 @@ fn state() -> State {
         mean_speed: 0.25,
         input_power: 1.5,
         last: false,
+        applied: Some(Applied {
+            wave: Some(wave()),
+            field: None,
+        }),
+    }
+}
+
+/// The state after a step driven by a field: the field it applied.
+fn state_field() -> State {
+    State {
+        applied: Some(Applied {
+            wave: None,
+            field: Some(vec![0.5, -0.5]),
+        }),
+        ..state()
     }
 }
 
@@ -93,16 +109,78 @@ fn metrics() -> Metrics {
 fn status() -> Status {
     Status {
         v: V,
-        role: "plant".into(),
+        role: Role::Plant,
         id: "5eed".into(),
-        state: "running".into(),
+        state: ProcessState::Running,
         message: "step 9 of 10".into(),
         step: 9,
         rejected: Rejections {
             stale: 1,
             ..Rejections::default()
         },
-        summary: None,
+        report: None,
+    }
+}
+
+/// The plant's last status, with its final report (a run of 2 cells to t = 0.01 s under the
+/// wave above, in task mode: the energy ran out).
+fn status_finished() -> Status {
+    Status {
+        state: ProcessState::Finished,
+        message: "finished at step 10".into(),
+        step: 10,
+        rejected: Rejections::default(),
+        report: Some(FinalReport {
+            scenario: "demo".into(),
+            velocity: 0.049,
+            power: 4.73,
+            mileage: Some(0.0103),
+            max_stress: 36300.0,
+            max_strain: 0.0026,
+            stuck_fraction: 0.0,
+            mean_friction_selection: -0.5,
+            dissipation: 4.73,
+            identity_velocity: 0.049,
+            momentum_residual: None,
+            events: EpisodeStats {
+                count: 0,
+                per_node_per_period: 0.0,
+                mean_duration: 0.0,
+                min_duration: 0.0005,
+            },
+            window: ReportWindow {
+                start: 0.0,
+                end: 0.01,
+                periods: 0.125,
+                steady: false,
+                whole_run: true,
+            },
+            cells: 2,
+            dt: 0.0005,
+            step: 0.001,
+            courant: 1.0,
+            dx: 0.5,
+            cells_per_wavelength: Some(2.0),
+            steps: 20,
+            macro_steps: 10,
+            t_end: 0.01,
+            state_digest: "4832f1ec".into(),
+            task: Some(TaskResult {
+                outcome: TaskOutcome::EnergyExhausted,
+                distance_target: 1.0,
+                distance: 0.0005,
+                time_to_distance: None,
+                energy_budget: 0.04,
+                energy_used: 0.0473,
+                energy_at_distance: None,
+                energy_exhausted_at: Some(0.0085),
+                sigma_max: 100000.0,
+                max_stress: 36300.0,
+                time_over_sigma_max: 0.0,
+                run_time: 0.01,
+            }),
+        }),
+        ..status()
     }
 }
 
@@ -195,11 +273,13 @@ fn docs_show_the_real_encoding() {
     let doc = std::fs::read_to_string(path).expect("docs/protocol.md exists");
     let missing: Vec<String> = [
         check("State", state(), &doc),
+        check("State (applied field)", state_field(), &doc),
         check("Actuation (wave)", actuation_wave(), &doc),
         check("Actuation (field)", actuation_field(), &doc),
         check("Events", events(), &doc),
         check("Metrics", metrics(), &doc),
         check("Status", status(), &doc),
+        check("Status (finished)", status_finished(), &doc),
         check("Prediction", prediction(), &doc),
         check("ModelInfo", model_info(), &doc),
     ]

@@ -407,6 +407,8 @@ pub struct Entity {
     /// Line strips (LineStrips2D archetype) of every row, static ones included: each row's
     /// strips, each strip its points.
     pub strips: Vec<Vec<Vec<[f32; 2]>>>,
+    /// Bar charts (BarChart archetype): the `step` of each row and its values, in step order.
+    pub bars: Vec<(i64, Vec<f64>)>,
 }
 
 impl Recording {
@@ -431,6 +433,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
     )?;
     let scalars = rerun::Scalars::descriptor_scalars().component;
     let strips = rerun::LineStrips2D::descriptor_strips().component;
+    let bar_values = rerun::BarChart::descriptor_values().component;
     let mut rec = Recording::default();
     for (id, store) in &stores {
         if id.kind() != rerun::StoreKind::Recording {
@@ -459,6 +462,20 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
                 .iter_slices::<f64>(scalars)
                 .map(|s| s.to_vec())
                 .collect();
+            let bars: Vec<Vec<f64>> = chunk
+                .iter_component::<rerun::components::TensorData>(bar_values)
+                .map(|row| {
+                    use rerun::datatypes::TensorBuffer;
+                    match row.as_slice().first().map(|t| &t.0.buffer) {
+                        Some(TensorBuffer::F64(b)) => b.to_vec(),
+                        Some(TensorBuffer::F32(b)) => b.iter().map(|&x| f64::from(x)).collect(),
+                        _ => Vec::new(),
+                    }
+                })
+                .collect();
+            for (i, bar) in bars.into_iter().enumerate() {
+                e.bars.push((steps.times_raw()[i], bar));
+            }
             for i in order {
                 e.rows += 1;
                 e.steps.push(steps.times_raw()[i]);
@@ -478,6 +495,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
         pairs.sort_by_key(|p| p.0);
         e.steps = pairs.iter().map(|p| p.0).collect();
         e.scalars = pairs.iter().filter_map(|p| p.1).collect();
+        e.bars.sort_by_key(|b| b.0);
     }
     Ok(rec)
 }

@@ -270,6 +270,9 @@ fn a_task_mode_run_ends_early_and_everyone_believes_its_finished_status() {
     let summary = json(&c.stdout);
     assert_eq!(summary["steps"].as_u64(), Some(last), "{}", c.stdout);
     assert_eq!(summary["plant"]["state_digest"], sim["state_digest"]);
+    // the typed task result on the wire is the plant's own, field for field
+    assert_eq!(summary["plant"]["task"], sim["task"]);
+    assert_eq!(summary["plant"]["task"]["outcome"], "reached");
     assert!(!c.stderr.contains("inconsistent"), "{}", c.stderr);
     // the recorder rejected nothing and kept the plant's summary and every state
     assert!(b.stderr.contains("(0 invalid)"), "{}", b.stderr);

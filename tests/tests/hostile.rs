@@ -21,8 +21,8 @@ use zenoh::Wait;
 
 use crawler_e2e::{json, rss_kib, simulate, Proc, Run};
 use crawler_protocol::{
-    decode, encode, EpisodeMsg, Events, ModelInfo, Role, RunKeys, RunLimits, State, Status,
-    PROTOCOL_VERSION,
+    decode, encode, EpisodeMsg, EpisodeStats, Events, FinalReport, ModelInfo, ProcessState,
+    ReportWindow, Role, RunKeys, RunLimits, State, Status, PROTOCOL_VERSION,
 };
 use crawler_transport::{Access, Seal};
 
@@ -91,17 +91,60 @@ fn plant_id(session: &zenoh::Session, keys: &RunKeys) -> String {
     panic!("the plant's liveliness token was not seen");
 }
 
-/// A plant status claiming `state` at `step` from `id`.
+/// A plant status claiming `state` at `step` from `id`; a `finished` one with a forged (valid)
+/// report.
 fn status(id: &str, state: &str, step: u64) -> Status {
+    let state = ProcessState::parse(state).unwrap();
     Status {
         v: PROTOCOL_VERSION,
-        role: "plant".into(),
+        role: Role::Plant,
         id: id.into(),
-        state: state.into(),
+        state,
         message: "forged".into(),
         step,
         rejected: Default::default(),
-        summary: Some("{\"state_digest\":\"forged\"}".into()),
+        report: (state == ProcessState::Finished).then(forged_report),
+    }
+}
+
+/// A final report no run of these tests produced: its digest is `f0f0f0f0`.
+fn forged_report() -> FinalReport {
+    FinalReport {
+        scenario: "forged".into(),
+        velocity: 9.0,
+        power: 1.0,
+        mileage: Some(9.0),
+        max_stress: 1.0,
+        max_strain: 0.0,
+        stuck_fraction: 0.0,
+        mean_friction_selection: 0.0,
+        dissipation: 1.0,
+        identity_velocity: 9.0,
+        momentum_residual: None,
+        events: EpisodeStats {
+            count: 0,
+            per_node_per_period: 0.0,
+            mean_duration: 0.0,
+            min_duration: 0.0,
+        },
+        window: ReportWindow {
+            start: 0.0,
+            end: 1.0,
+            periods: 1.0,
+            steady: true,
+            whole_run: false,
+        },
+        cells: 512,
+        dt: 1e-5,
+        step: 1e-3,
+        courant: 1.0,
+        dx: 1.0 / 512.0,
+        cells_per_wavelength: None,
+        steps: 1,
+        macro_steps: 1,
+        t_end: 1.0,
+        state_digest: "f0f0f0f0".into(),
+        task: None,
     }
 }
 
@@ -269,7 +312,7 @@ fn payloads(me: &str) -> Vec<(&'static str, Vec<u8>)> {
         (
             "float as step",
             pack(
-                &serde_json::json!({"v": 1, "step": 1.5, "controller": me, "wave": null, "field": null}),
+                &serde_json::json!({"v": PROTOCOL_VERSION, "step": 1.5, "controller": me, "wave": null, "field": null}),
             ),
         ),
     ]
@@ -402,6 +445,7 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
             mean_speed: 0.0,
             input_power: 0.0,
             last: true,
+            applied: None,
         };
         block(&session, s, &keys.state(), encode(&fake));
         block(&session, s, &keys.events(), encode(&forged_events(700)));
@@ -461,9 +505,10 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         "the recording lost states: {rows} rows; bridge: {}",
         b.stderr
     );
-    // the recording kept the plant's summary, not the forged one
-    assert!(
-        rec.entities.contains_key("summary/velocity"),
+    // the recording kept the plant's report, not the forged one (V = 9 m/s)
+    assert_eq!(
+        rec.entity("summary/velocity").scalars,
+        [json(&p.stdout)["velocity"].as_f64().unwrap()],
         "{:?}",
         rec.entities.keys()
     );

@@ -1,16 +1,69 @@
 //! Recordings read back with the rerun crate's own reader.
 
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use zenoh::Wait;
 
-use crawler_e2e::{json, read_recording, repo_root, simulate, Run};
-use crawler_protocol::{decode, RunKeys, State};
+use crawler_e2e::{json, read_recording, repo_root, simulate, Recording, Run};
+use crawler_protocol::{decode, Actuation, RunKeys, State, WaveMsg};
 
 const PLANT: &[&str] = &["--eps", "1", "--t-end", "8", "--json"];
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
+
+/// Every actuation the run's controller sends, by step (a passive subscriber of the run: it knows
+/// the zenoh password, not the message key).
+fn spy_actuation(run: &Run) -> (zenoh::Session, Arc<Mutex<BTreeMap<u64, Actuation>>>) {
+    let session = run.transport_only_session(128);
+    let keys = RunKeys::new(&run.id).unwrap();
+    let sent = Arc::new(Mutex::new(BTreeMap::new()));
+    let s2 = sent.clone();
+    session
+        .declare_subscriber(keys.actuation())
+        .callback(move |s| {
+            if let Ok(a) = decode::<Actuation>(&s.payload().to_bytes()) {
+                s2.lock().unwrap().insert(a.step, a);
+            }
+        })
+        .background()
+        .wait()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    (session, sent)
+}
+
+/// The recording's applied wave equals, at every state n >= 1, the wave the controller sent for
+/// step n - 1; returns how many states were checked.
+fn applied_wave_is_what_was_sent(rec: &Recording, sent: &BTreeMap<u64, Actuation>) -> usize {
+    type Param = fn(&WaveMsg) -> f64;
+    let params: [(&str, Param); 4] = [
+        ("f0", |w| w.f0),
+        ("k", |w| w.k),
+        ("omega", |w| w.omega),
+        ("phase", |w| w.phase),
+    ];
+    let rows = rec.entity("actuation/applied/f0").rows;
+    for (name, get) in params {
+        let e = rec.entity(&format!("actuation/applied/{name}"));
+        assert_eq!(e.rows, rows, "{name}");
+        assert_eq!(e.scalars.len(), rows, "{name}");
+        for (&step, &value) in e.steps.iter().zip(&e.scalars) {
+            let a = sent
+                .get(&(step as u64 - 1))
+                .unwrap_or_else(|| panic!("no actuation seen for step {}", step - 1));
+            let wave = a.wave.expect("a wave was sent");
+            assert_eq!(
+                value.to_bits(),
+                get(&wave).to_bits(),
+                "applied {name} at state {step}: recorded {value}, sent {}",
+                get(&wave)
+            );
+        }
+    }
+    rows
+}
 
 #[test]
 fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
@@ -19,6 +72,7 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
     let plant = run.plant(PLANT);
     let bridge = run.bridge(&rrd, &["--every", "2"]);
     bridge.wait_for_stderr("plant found", Duration::from_secs(30));
+    let (_spy, sent) = spy_actuation(&run);
     let controller = run.controller(WAVE);
     let p = plant.wait(Duration::from_secs(60));
     assert!(controller.wait(Duration::from_secs(30)).status.success());
@@ -97,6 +151,75 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
     }
     // and the recorded tail equals the in-process trajectory's last state (bit for bit)
     assert_eq!(summary["state_digest"], sim["state_digest"]);
+    // what the plant applied: at every state after the first, the wave the controller sent for
+    // the step before, and no field
+    let sent = sent.lock().unwrap();
+    assert_eq!(
+        sent.len() as u64,
+        last,
+        "the spy saw every answer, steps 0 to {}",
+        last - 1
+    );
+    let checked = applied_wave_is_what_was_sent(&rec, &sent);
+    assert_eq!(checked as u64, last, "states 1 to {last}");
+    assert_eq!(rec.entity("actuation/applied/f0").steps.first(), Some(&1));
+    assert!(!rec.entities.contains_key("actuation/applied/field"));
+}
+
+/// A controller that drives the body with a field (the `reflex` policy: a new field every step):
+/// the recording holds, at every state whose fields it recorded (every 8th here, or fewer when it
+/// decimates), the field the controller sent for the step before, value for value.
+#[test]
+fn a_recording_holds_the_field_the_plant_applied() {
+    let run = Run::new("recfield");
+    let rrd = run.path("field.rrd");
+    let plant = run.plant(&["--eps", "1", "--cells", "128", "--t-end", "5.2", "--json"]);
+    let bridge = run.bridge(&rrd, &["--every", "8"]);
+    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
+    let (_spy, sent) = spy_actuation(&run);
+    let controller = run.controller(&["--policy", "reflex"]);
+    let p = plant.wait(Duration::from_secs(120));
+    let c = controller.wait(Duration::from_secs(30));
+    let b = bridge.wait(Duration::from_secs(60));
+    assert!(p.status.success(), "plant: {}", p.stderr);
+    assert!(c.status.success(), "controller: {}", c.stderr);
+    assert!(b.status.success(), "bridge: {}", b.stderr);
+    let last = json(&p.stdout)["macro_steps"].as_u64().unwrap();
+    let sent = sent.lock().unwrap();
+    assert_eq!(sent.len() as u64, last, "the spy saw every answer");
+    let rec = read_recording(&rrd).unwrap();
+    let field = &rec.entity("actuation/applied/field").bars;
+    // the states whose fields were recorded, but the first (nothing applied before it)
+    let u = rec.entity("fields/u");
+    assert_eq!(u.steps.first(), Some(&0));
+    assert_eq!(
+        field.iter().map(|b| b.0).collect::<Vec<_>>(),
+        u.steps[1..],
+        "the applied field is recorded with the other fields"
+    );
+    assert!(field.len() as u64 >= last / 64, "{} rows", field.len());
+    let mut changed = 0;
+    for (step, values) in field {
+        assert!(
+            (*step as u64).is_multiple_of(8) || *step as u64 == last,
+            "a field at step {step}"
+        );
+        let a = &sent[&(*step as u64 - 1)];
+        let f = a.field.as_ref().expect("the reflex policy sends fields");
+        assert_eq!(values.len(), 128);
+        assert!(
+            values
+                .iter()
+                .zip(f)
+                .all(|(r, s)| r.to_bits() == s.to_bits()),
+            "state {step}: the recorded field is not the one sent for step {}",
+            step - 1
+        );
+        changed += usize::from(sent.get(&(*step as u64)).and_then(|n| n.field.as_ref()) != Some(f));
+    }
+    assert!(changed > 0, "the reflex policy's field never changed");
+    // a field run records no wave parameters
+    assert!(!rec.entities.contains_key("actuation/applied/f0"));
 }
 
 /// Tracks the latest step the plant published (a passive subscriber of the run).
