@@ -671,7 +671,7 @@ fn serve(
                 if !terminal_is_consistent(&st, &info, last_state_step) {
                     ignored += 1;
                     eprintln!(
-                        "crawler-controller: ignoring an inconsistent plant status {:?} at step {} (the run ends at step {})",
+                        "crawler-controller: ignoring an inconsistent plant status \"{}\" at step {} (the run ends at step {})",
                         st.state, st.step, info.last_step
                     );
                     continue;
