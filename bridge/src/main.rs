@@ -21,9 +21,14 @@ use crawler_transport::{Credential, Network, Seal};
 
 /// Byte budget of the states in the inbox between the zenoh callbacks and the writer.
 const STATE_BYTES: usize = 48 << 20;
-/// Byte budget of everything else in it (events, metrics, predictions, statuses): its own, so a
-/// backlog of states never crowds them out.
+/// Byte budget of everything else in it (events, metrics, predictions): its own, so a backlog of
+/// states never crowds them out.
 const OTHER_BYTES: usize = 8 << 20;
+/// Statuses have an inbox and a budget of their own: a flood of episodes (tens of thousands per
+/// second in hard stick-slip) must never drop the plant's final status.
+const STATUS_BYTES: usize = 8 << 20;
+/// Messages the status inbox holds (a process sends about one status a second).
+const STATUS_SLOTS: usize = 1024;
 
 #[derive(Parser)]
 #[command(
@@ -115,6 +120,8 @@ type Arrival = (Instant, Charged<Incoming>);
 #[derive(Clone)]
 struct Sink {
     tx: Sender<Arrival>,
+    status_tx: Sender<Arrival>,
+    statuses: ByteBudget,
     states: ByteBudget,
     others: ByteBudget,
     dropped: Arc<AtomicU64>,
@@ -137,13 +144,14 @@ fn subscribe(
             };
             let len = bytes.len();
             let msg = wrap(bytes);
-            let budget = match msg {
-                Incoming::State(_) => &sink.states,
-                _ => &sink.others,
+            let (budget, tx) = match msg {
+                Incoming::State(_) => (&sink.states, &sink.tx),
+                Incoming::Status(_) => (&sink.statuses, &sink.status_tx),
+                _ => (&sink.others, &sink.tx),
             };
             let queued = budget
                 .charge(msg, len)
-                .is_some_and(|m| sink.tx.try_send((Instant::now(), m)).is_ok());
+                .is_some_and(|m| tx.try_send((Instant::now(), m)).is_ok());
             if !queued {
                 sink.dropped.fetch_add(1, Ordering::Relaxed);
             }
@@ -234,12 +242,13 @@ impl Connection {
             .declare_subscriber(keys.alive_all(Role::Plant))
             .history(true)
             .callback(move |sample| {
-                if sample.kind() == zenoh::sample::SampleKind::Put {
-                    if let Some(pid) =
-                        plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
-                    {
-                        let _ = plant_tx.send(Incoming::PlantUp(pid.to_string()));
-                    }
+                if let Some(pid) =
+                    plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
+                {
+                    let _ = plant_tx.send(match sample.kind() {
+                        zenoh::sample::SampleKind::Put => Incoming::PlantUp(pid.to_string()),
+                        zenoh::sample::SampleKind::Delete => Incoming::PlantDown(pid.to_string()),
+                    });
                 }
             })
             .wait()
@@ -456,9 +465,12 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         eprintln!("crawler-bridge: warning: unauthenticated (--no-auth): the recording cannot tell the run's messages from anyone else's");
     }
     let (tx, rx) = bounded::<Arrival>(a.inbox);
+    let (status_tx, status_rx) = bounded::<Arrival>(STATUS_SLOTS);
     let dropped = Arc::new(AtomicU64::new(0));
     let sink = Sink {
         tx,
+        status_tx,
+        statuses: ByteBudget::new(STATUS_BYTES),
         states: ByteBudget::new(STATE_BYTES),
         others: ByteBudget::new(OTHER_BYTES),
         dropped: dropped.clone(),
@@ -535,6 +547,12 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                     lag = arrived.elapsed();
                 }
             },
+            recv(status_rx) -> msg => {
+                if let Ok((_, msg)) = msg {
+                    recorder.handle(msg.split().0)?;
+                    last_message = Instant::now();
+                }
+            },
             default(Duration::from_millis(100)) => {},
         }
         if !output.promoted() && recorder.counts().states > 0 {
@@ -552,7 +570,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         }
         recorder.pace(rx.len(), lag, dropped.load(Ordering::Relaxed));
         recorder.maybe_flush();
-        if recorder.finished() && rx.is_empty() {
+        if recorder.finished() && rx.is_empty() && status_rx.is_empty() {
             break false;
         }
         recorder.refused_at_arrival(refused.oversize(), refused.unsealed());
@@ -613,7 +631,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         }
     };
     // Drain what already arrived, then finish the file properly.
-    while let Ok((_, msg)) = rx.try_recv() {
+    while let Ok((_, msg)) = rx.try_recv().or_else(|_| status_rx.try_recv()) {
         recorder.handle(msg.split().0)?;
     }
     recorder.refused_at_arrival(refused.oversize(), refused.unsealed());

@@ -33,6 +33,8 @@ pub enum Incoming {
     Status(Vec<u8>),
     /// The liveliness token of a plant appeared (its id).
     PlantUp(String),
+    /// The liveliness token of a plant disappeared (its id): the plant process ended.
+    PlantDown(String),
 }
 
 /// Longest a state may wait in the inbox before the recorder decimates the fields it records.
@@ -121,6 +123,8 @@ pub struct Recorder {
     invalid_by_kind: BTreeMap<&'static str, u64>,
     /// The pipe, once the plant answered it.
     environment: Option<Environment>,
+    /// When the liveliness token of the recorded plant disappeared.
+    plant_gone_at: Option<Instant>,
     /// Step of the plant's last state (last: true), once it came: the run's last step.
     plant_last_state: Option<u64>,
     /// The plant's `finished` statuses for a step before the model's last that came before any
@@ -202,6 +206,7 @@ impl Recorder {
             controller_id: None,
             invalid_by_kind: BTreeMap::new(),
             environment: None,
+            plant_gone_at: None,
             plant_last_state: None,
             held_finished: BTreeMap::new(),
         };
@@ -218,9 +223,14 @@ impl Recorder {
     pub fn finished(&self) -> bool {
         // what is still buffered is written by finish(); after the last state, the plant's final
         // status (with its summary) is awaited for at most two seconds
+        // a plant that ended (or died) without its last state or final status reaching us ends
+        // the recording too, once what it sent before had two seconds to arrive
         self.finished
             || self
                 .last_state_at
+                .is_some_and(|t| t.elapsed() > Duration::from_secs(2))
+            || self
+                .plant_gone_at
                 .is_some_and(|t| t.elapsed() > Duration::from_secs(2))
     }
 
@@ -480,6 +490,11 @@ impl Recorder {
                     self.plant_id = Some(id);
                 }
             }
+            Incoming::PlantDown(id) => {
+                if self.plant_id.as_deref() == Some(id.as_str()) && self.plant_gone_at.is_none() {
+                    self.plant_gone_at = Some(Instant::now());
+                }
+            }
         }
         Ok(())
     }
@@ -549,6 +564,12 @@ impl Recorder {
     /// Records every pending state (end of run or shutdown), flushes and closes the file.
     pub fn finish(&mut self) -> anyhow::Result<()> {
         self.drain(true)?;
+        if self.plant_gone_at.is_some() && !self.finished {
+            self.note(
+                "the plant ended without its final status reaching the recorder".to_string(),
+                rerun::TextLogLevel::WARN,
+            );
+        }
         // finished statuses no last state of the plant confirmed: not the plant's end
         for (step, _) in std::mem::take(&mut self.held_finished) {
             let why = match self.plant_last_state {

@@ -385,3 +385,29 @@ fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not
     // the nodes on the line at every step whose fields were recorded
     assert_eq!(rec.entity("pipe/body").steps, rec.entity("fields/u").steps);
 }
+
+/// A plant that dies (kill -9) sends neither its last state nor its final status: the recorder
+/// notices its liveliness token go, closes the recording properly within seconds and says why.
+#[test]
+fn a_recorder_whose_plant_dies_closes_the_recording() {
+    let run = Run::new("plantdies");
+    let rrd = run.path("dies.rrd");
+    let plant = run.plant(&["--eps", "1", "--t-end", "600"]);
+    let bridge = run.bridge(&rrd, &[]);
+    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
+    let _controller = run.controller(WAVE);
+    plant.wait_for_stderr("joined run", Duration::from_secs(30));
+    std::thread::sleep(Duration::from_millis(500));
+    plant.signal("-9");
+    let killed = Instant::now();
+    let b = bridge.wait(Duration::from_secs(30));
+    assert!(
+        killed.elapsed() < Duration::from_secs(15),
+        "the recorder took {:?} to notice",
+        killed.elapsed()
+    );
+    assert!(b.status.success(), "{}", b.stderr);
+    assert!(b.stderr.contains("recording closed"), "{}", b.stderr);
+    let rec = read_recording(&rrd).unwrap();
+    assert!(rec.entity("tail/plant").rows > 100);
+}
