@@ -90,7 +90,7 @@ fn main() -> anyhow::Result<()> {
                 end: t,
                 velocity: 0.049,
                 power: 4.73,
-                mileage: 0.0103,
+                mileage: Some(0.0103),
                 max_stress: 36300.0,
                 max_strain: 0.0026,
                 stuck_fraction: 0.1,

@@ -325,7 +325,7 @@ mod tests {
             end: 5.0,
             velocity: 0.05,
             power: 1.0,
-            mileage: 0.05,
+            mileage: Some(0.05),
             max_stress: 1.5e4,
             max_strain: 0.1,
             stuck_fraction: 0.02,
@@ -339,7 +339,7 @@ mod tests {
         let f = facts();
         super::metrics(&metrics(), &f).unwrap();
         let mut nan_mileage = metrics();
-        nan_mileage.mileage = f64::NAN; // P = 0
+        nan_mileage.mileage = None; // P = 0
         super::metrics(&nan_mileage, &f).unwrap();
         for (edit, needle) in [
             (

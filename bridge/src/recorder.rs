@@ -867,7 +867,7 @@ impl Recorder {
         let plant = [
             m.velocity,
             m.power,
-            m.mileage,
+            m.mileage.unwrap_or(f64::NAN),
             m.max_stress,
             m.stuck_fraction,
         ];

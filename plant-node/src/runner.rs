@@ -378,7 +378,7 @@ impl Runner {
                 end: m.end,
                 velocity: m.velocity,
                 power: m.power,
-                mileage: m.mileage,
+                mileage: Some(m.mileage).filter(|x| x.is_finite()),
                 max_stress: m.max_stress,
                 max_strain: m.max_strain,
                 stuck_fraction: m.stuck_fraction,

@@ -267,7 +267,7 @@ mod tests {
             end: -1e300,
             velocity: -1e300,
             power: -1e300,
-            mileage: -1e300,
+            mileage: Some(-1e300),
             max_stress: -1e300,
             max_strain: -1e300,
             stuck_fraction: -1e300,

@@ -448,8 +448,8 @@ pub struct Metrics {
     pub velocity: f64,
     /// Input power P, W.
     pub power: f64,
-    /// Mileage |V|/P, m/J.
-    pub mileage: f64,
+    /// Mileage |V|/P, m/J; `None` (nil) when it is not a number (P = 0).
+    pub mileage: Option<f64>,
     /// sup T / A_c, Pa.
     pub max_stress: f64,
     /// max |u_x|.
@@ -484,12 +484,8 @@ impl Message for Metrics {
         ] {
             finite(&format!("metrics.{name}"), x)?;
         }
-        if !(self.mileage.is_finite() || self.mileage.is_nan()) {
-            return Err(ProtocolError::invalid(
-                "metrics.mileage",
-                self.mileage,
-                "a finite number (NaN when P = 0)",
-            ));
+        if let Some(m) = self.mileage {
+            finite("metrics.mileage", m)?;
         }
         Ok(())
     }
@@ -1191,6 +1187,30 @@ mod tests {
             last: false,
             applied,
         }
+    }
+
+    #[test]
+    fn a_mileage_that_is_not_a_number_travels_as_nil_never_as_nan() {
+        let mut m = Metrics {
+            v: PROTOCOL_VERSION,
+            step: 10,
+            block: 0,
+            steady: false,
+            start: 0.0,
+            end: 0.1,
+            velocity: 0.0,
+            power: 0.0,
+            mileage: None, // P = 0
+            max_stress: 0.0,
+            max_strain: 0.0,
+            stuck_fraction: 0.0,
+            mean_friction_selection: 0.0,
+            episodes_per_node_per_period: 0.0,
+        };
+        assert_eq!(decode::<Metrics>(&encode(&m)).unwrap(), m);
+        m.mileage = Some(f64::NAN);
+        let e = decode::<Metrics>(&encode(&m)).unwrap_err().to_string();
+        assert!(e.starts_with("invalid metrics.mileage = NaN"), "{e}");
     }
 
     fn wave() -> WaveMsg {

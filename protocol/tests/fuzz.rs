@@ -78,7 +78,7 @@ fn samples() -> Samples {
         end: 1.2,
         velocity: 0.05,
         power: 0.1,
-        mileage: 0.5,
+        mileage: Some(0.5),
         max_stress: 1000.0,
         max_strain: 0.01,
         stuck_fraction: 0.2,

@@ -97,7 +97,7 @@ fn metrics() -> Metrics {
         end: 5.071,
         velocity: 0.049,
         power: 4.73,
-        mileage: 0.0103,
+        mileage: Some(0.0103),
         max_stress: 36300.0,
         max_strain: 0.0026,
         stuck_fraction: 0.0,
