@@ -600,12 +600,11 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                     continue;
                 }
                 conn.state_gate.set_limit(limits.state());
-                recorder.set_model(&info)?;
+                // the pipe as the plant resolved it (a plant that does not answer: no map
+                // drawn), taken with the model so that every state from now on is drawn on it
+                let environment = conn.query_environment(&keys, &refused);
+                recorder.set_model(&info, environment)?;
                 model_known = true;
-                // the pipe as the plant resolved it (a plant that does not answer: no map drawn)
-                if let Some(env) = conn.query_environment(&keys, &refused) {
-                    recorder.set_environment(env)?;
-                }
                 // Our subscriptions reached the plant before this reply did (same link,
                 // in order): from here on nothing the plant publishes is missed.
                 eprintln!(

@@ -236,7 +236,13 @@ impl Recorder {
 
     /// Takes the plant's model description: the body length, and the run's last step, marked at
     /// once so that the recording's timeline spans the whole run from its first bytes.
-    pub fn set_model(&mut self, info: &crawler_protocol::ModelInfo) -> anyhow::Result<()> {
+    /// With it the pipe the plant resolved, if it answered (drawn before the messages that came
+    /// early are recorded).
+    pub fn set_model(
+        &mut self,
+        info: &crawler_protocol::ModelInfo,
+        environment: Option<Environment>,
+    ) -> anyhow::Result<()> {
         if info.length.is_finite() && info.length > 0.0 {
             self.length = info.length;
         }
@@ -252,6 +258,9 @@ impl Recorder {
             ))
             .with_level(rerun::TextLogLevel::INFO),
         )?;
+        if let Some(env) = environment {
+            self.set_environment(env)?;
+        }
         // what arrived before can be checked now
         for msg in std::mem::take(&mut self.early) {
             self.handle(msg)?;
@@ -262,7 +271,7 @@ impl Recorder {
     /// Draws the pipe the plant resolved: eps(X) and n_F(X) as static step lines from a body
     /// length behind the tail's start to a body length past the last change (at least two body
     /// lengths ahead), and from now on the body's nodes on eps(X) at every recorded step.
-    pub fn set_environment(&mut self, env: Environment) -> anyhow::Result<()> {
+    fn set_environment(&mut self, env: Environment) -> anyhow::Result<()> {
         let length = self.length;
         let first = env.piece_start.first().copied().unwrap_or(env.start);
         let last = env.piece_start.last().copied().unwrap_or(env.start);

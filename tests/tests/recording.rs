@@ -331,6 +331,9 @@ fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not
     // a short run on a coarse grid, the body's centre starting at X = 0.5 m, a patch's edge
     let plant = run.plant(&["--scenario", scenario, "--cells", "64", "--t-end", "6"]);
     let bridge = run.bridge(&rrd, &[]);
+    // the recorder knows the model and the pipe before the first state (no state comes before
+    // a controller joins)
+    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
     let controller = run.controller(&["--policy", "wave", "--f0", "1.0", "--alpha", "1.0"]);
     let p = plant.wait(Duration::from_secs(120));
     assert!(p.status.success(), "{}", p.stderr);
