@@ -29,9 +29,13 @@ use crawler_transport::budget::{ByteBudget, Charged};
 use crawler_transport::gate::{self, Gate, Refused};
 use crawler_transport::{Credential, Network, Seal};
 
-/// The smallest byte budget of the state inbox (states and the plant's statuses): a plant has
+/// The smallest byte budget of the state inbox: a plant has
 /// one state in flight; this holds eight of a 28 000-cell run's.
 pub const STATE_INBOX_BYTES: usize = 8 << 20;
+
+/// Byte budget of the plant's statuses waiting to be read: their own, so that a backlog of
+/// states never crowds out the plant's final status (about one status a second arrives).
+pub const STATUS_INBOX_BYTES: usize = 4 << 20;
 
 use crate::controller::{Actuation, Context, FeedbackOptions, Insight, Observation, PolicyOptions};
 use crate::operating_point::OperatingPoint;
@@ -531,14 +535,15 @@ fn serve(
         .wait()
         .map_err(z)?;
     let (ev_tx, ev_rx) = unbounded::<Event>();
-    // Statuses are few (about one a second); a flood of them shares the states' byte budget.
+    // Statuses are few (about one a second) and have a budget of their own: a backlog of states
+    // must never drop the plant's final status, and a flood of statuses never crowds out states.
     let (status_tx, status_rx) = unbounded::<Charged<Status>>();
     let status_gate = Gate::new(
         RunLimits::text_message(),
         link.seal.clone(),
         refused.clone(),
     );
-    let status_budget = budget.clone();
+    let status_budget = ByteBudget::new(STATUS_INBOX_BYTES.max(2 * RunLimits::text_message()));
     let _status = session
         .declare_subscriber(keys.status(Role::Plant))
         .callback(move |s| {
