@@ -38,29 +38,11 @@ impl Role {
     }
 }
 
-impl std::fmt::Display for Role {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// On the wire a role is its name, a lowercase string.
-impl serde::Serialize for Role {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.as_str())
-    }
-}
-
-impl<'de> serde::Deserialize<'de> for Role {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        crate::messages::named(
-            d,
-            "status.role",
-            Role::parse,
-            "\"plant\", \"controller\" or \"bridge\"",
-        )
-    }
-}
+wire_name!(
+    Role,
+    "status.role",
+    "\"plant\", \"controller\" or \"bridge\""
+);
 
 /// Checks a run id: 1 to 64 characters from `[A-Za-z0-9_-]` (no key-expression wildcards).
 pub fn validate_run_id(id: &str) -> Result<(), ProtocolError> {

@@ -12,6 +12,30 @@
 //! - Closed sets of values are enums that travel as their lowercase names: a status's
 //!   [`Role`] and [`ProcessState`], a task's [`TaskOutcome`].
 
+/// An enum that travels as its name (`as_str`, `parse`): `Display`, and serde as a lowercase
+/// string, refused by field, value and what is `allowed` when unknown.
+macro_rules! wire_name {
+    ($ty:ty, $field:literal, $allowed:expr) => {
+        impl std::fmt::Display for $ty {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.as_str())
+            }
+        }
+
+        impl serde::Serialize for $ty {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_str(self.as_str())
+            }
+        }
+
+        impl<'de> serde::Deserialize<'de> for $ty {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                crate::messages::named(d, $field, <$ty>::parse, $allowed)
+            }
+        }
+    };
+}
+
 pub mod environment;
 pub mod error;
 pub mod keys;

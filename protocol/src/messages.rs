@@ -577,29 +577,11 @@ impl ProcessState {
     }
 }
 
-impl std::fmt::Display for ProcessState {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// On the wire a state is its name, a lowercase string.
-impl Serialize for ProcessState {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.as_str())
-    }
-}
-
-impl<'de> Deserialize<'de> for ProcessState {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        named(
-            d,
-            "status.state",
-            ProcessState::parse,
-            "\"waiting\", \"running\", \"finished\", \"failed\" or \"stopped\"",
-        )
-    }
-}
+wire_name!(
+    ProcessState,
+    "status.state",
+    "\"waiting\", \"running\", \"finished\", \"failed\" or \"stopped\""
+);
 
 /// Life-cycle status of a process.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -681,28 +663,11 @@ impl TaskOutcome {
     }
 }
 
-impl std::fmt::Display for TaskOutcome {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl Serialize for TaskOutcome {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.as_str())
-    }
-}
-
-impl<'de> Deserialize<'de> for TaskOutcome {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        named(
-            d,
-            "report.task.outcome",
-            TaskOutcome::parse,
-            "\"reached\", \"energy exhausted\" or \"time up\"",
-        )
-    }
-}
+wire_name!(
+    TaskOutcome,
+    "report.task.outcome",
+    "\"reached\", \"energy exhausted\" or \"time up\""
+);
 
 /// The task's result in a [`FinalReport`] (SI units; times from the start of the run).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
