@@ -757,9 +757,10 @@ impl Recorder {
     }
 
     /// The friction under the body: eps at the centre of mass every state, the nodes on eps(X)
-    /// at recorded steps. Nothing without an environment.
+    /// at recorded steps. Nothing without an environment or in a uniform pipe.
     fn log_pipe(&mut self, s: &State, recorded: bool) -> anyhow::Result<()> {
-        let Some(env) = &self.environment else {
+        // a uniform pipe is drawn once (its static lines); nothing per state
+        let Some(env) = self.environment.as_ref().filter(|e| !e.is_uniform()) else {
             return Ok(());
         };
         let n = s.u.len();
