@@ -19,7 +19,7 @@ use crawler_plant::scenario::{Overrides, Scenario};
 
 use crate::evaluate::evaluate;
 use crate::plan::Evaluate;
-use crate::point::{point_id, Point, CODE, FORMAT};
+use crate::point::{cost, point_id, Point, CODE, FORMAT};
 use crate::record::Record;
 use crate::store::Store;
 
@@ -81,6 +81,43 @@ pub fn default_chunk(n: usize) -> usize {
     n.div_ceil(1000).max(16)
 }
 
+/// Spreads `todo` over the array tasks so that they finish together; returns the chunk to
+/// use and the points in the order the tasks take them (task t runs `[t * chunk, (t + 1) *
+/// chunk)`). See [`deal_order`].
+fn deal<'a>(todo: &[&'a Point], chunk: usize, spec: &Evaluate) -> (usize, Vec<&'a Point>) {
+    let costs: Vec<f64> = todo.iter().map(|p| cost(p, spec)).collect();
+    let (chunk, order) = deal_order(&costs, chunk);
+    (chunk, order.into_iter().map(|i| todo[i]).collect())
+}
+
+/// The order in which array tasks of at most `chunk` points take points of the given
+/// estimated costs: as many tasks as `chunk` asks for, the same number of points in each but
+/// the last (the returned chunk, the smallest that keeps the number of tasks, so at most
+/// `chunk`), the points dealt costliest first in snake order (task 0, 1, ..., T-1, T-1, ..., 0,
+/// 0, 1, ...), ties in plan order. Neighbouring points of a plan often cost alike (a plant
+/// run's cost grows with alpha, say), so contiguous chunks of the plan would leave one task
+/// running long after the others.
+fn deal_order(costs: &[f64], chunk: usize) -> (usize, Vec<usize>) {
+    let n = costs.len();
+    let tasks = n.div_ceil(chunk.max(1)).max(1);
+    let chunk = n.div_ceil(tasks).max(1);
+    let size = |t: usize| chunk.min(n - (t * chunk).min(n));
+    let mut by_cost: Vec<usize> = (0..n).collect();
+    by_cost.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]).then(a.cmp(&b)));
+    let mut slices: Vec<Vec<usize>> = (0..tasks).map(|t| Vec::with_capacity(size(t))).collect();
+    let snake = (0..tasks).chain((0..tasks).rev()).cycle();
+    let mut points = by_cost.into_iter().peekable();
+    for t in snake {
+        if points.peek().is_none() {
+            break;
+        }
+        if slices[t].len() < size(t) {
+            slices[t].extend(points.next());
+        }
+    }
+    (chunk, slices.concat())
+}
+
 fn read_json<T: for<'a> Deserialize<'a>>(path: &Path) -> anyhow::Result<T> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
@@ -114,6 +151,7 @@ pub fn submit(
 ) -> anyhow::Result<Submission> {
     let chunk = opts.chunk.unwrap_or_else(|| default_chunk(todo.len()));
     anyhow::ensure!(chunk >= 1, "invalid --chunk = 0: allowed an integer >= 1");
+    let (chunk, todo) = deal(todo, chunk, spec);
     let work = std::path::absolute(work)?;
     std::fs::create_dir_all(&work)
         .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", work.display()))?;
@@ -472,4 +510,53 @@ pub fn failed_task_logs(work: &Path, store: &Store, max_lines: usize) -> Vec<Str
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::deal_order;
+
+    #[test]
+    fn dealing_keeps_every_point_once_and_the_number_of_tasks() {
+        for n in 1usize..40 {
+            for chunk in 1..12 {
+                let costs: Vec<f64> = (0..n).map(|i| ((i * 7) % 5) as f64).collect();
+                let (c, order) = deal_order(&costs, chunk);
+                assert!(c <= chunk, "n {n} chunk {chunk}: {c}");
+                assert_eq!(n.div_ceil(c), n.div_ceil(chunk), "n {n} chunk {chunk}");
+                let mut sorted = order.clone();
+                sorted.sort();
+                assert_eq!(sorted, (0..n).collect::<Vec<_>>(), "n {n} chunk {chunk}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_cost_that_grows_along_the_plan_is_shared_evenly() {
+        // cost rising with the plan's index (as with alpha): contiguous halves would give
+        // 300^2 against 3 x 300^2; dealt, the two tasks' totals differ by under 1 %
+        let costs: Vec<f64> = (0..600).map(|i| i as f64).collect();
+        let (chunk, order) = deal_order(&costs, 300);
+        assert_eq!(chunk, 300);
+        let total = |t: usize| -> f64 {
+            order[t * chunk..(t + 1) * chunk]
+                .iter()
+                .map(|&i| costs[i])
+                .sum()
+        };
+        let (a, b) = (total(0), total(1));
+        assert!((a - b).abs() < 0.01 * a.min(b), "{a} against {b}");
+        // the costliest points go first, so the last points each task runs are its cheapest
+        assert_eq!(order[0], 599);
+        assert_eq!(order[chunk], 598);
+    }
+
+    #[test]
+    fn chunks_are_evened_out_without_adding_tasks() {
+        // 600 points in chunks of 250: three tasks of 200, not 250, 250, 100
+        let (chunk, order) = deal_order(&[1.0; 600], 250);
+        assert_eq!((chunk, order.len()), (200, 600));
+        // equal costs: plan order dealt round the tasks, so each task spans the whole plan
+        assert_eq!(&order[..3], &[0, 5, 6]);
+    }
 }
