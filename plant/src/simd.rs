@@ -100,10 +100,10 @@ impl F4 {
         self.0.cmp_ne(f64x4::ZERO).any()
     }
 
-    /// Lane-wise `1.0` where the lane lies outside `[lo, hi)`, else `0.0`.
+    /// True if any lane lies outside `[lo, hi)`.
     #[inline(always)]
-    pub fn outside_as_one(self, lo: Self, hi: Self) -> Self {
-        F4((self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0)) & f64x4::ONE)
+    pub fn any_outside(self, lo: Self, hi: Self) -> bool {
+        (self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0)).any()
     }
 
     /// Lane 0.
@@ -172,17 +172,14 @@ mod tests {
         assert!(F4(f64x4::new([0.0, 0.0, 1.0, 0.0])).any_nonzero());
         assert!(!z.any_nonzero());
         let (lo, hi) = (F4::splat(-1.0), F4::splat(1.0));
-        assert_eq!(
-            F4(f64x4::new([-1.0, 0.0, 0.5, 0.999]))
-                .outside_as_one(lo, hi)
-                .lanes(),
-            [0.0; 4]
-        );
-        assert_eq!(
-            F4(f64x4::new([-1.5, 0.0, 1.0, 0.999]))
-                .outside_as_one(lo, hi)
-                .lanes(),
-            [1.0, 0.0, 1.0, 0.0]
-        );
+        // [lo, hi): lo is inside, hi is not, in any lane
+        assert!(!F4(f64x4::new([-1.0, 0.0, 0.5, 0.999])).any_outside(lo, hi));
+        for lane in 0..4 {
+            for x in [-1.5, 1.0, f64::INFINITY] {
+                let mut v = [0.0; 4];
+                v[lane] = x;
+                assert!(F4(f64x4::new(v)).any_outside(lo, hi), "{v:?}");
+            }
+        }
     }
 }

@@ -122,8 +122,9 @@ struct NodeFriction {
     inv_g: Vec<f64>,
     /// `eps_i c_d n_F,i / a`, m/s.
     push: Vec<f64>,
-    /// Per node: 1.0 if it left its interval in the last step (written by the kernel).
-    escaped: Vec<f64>,
+    /// First nodes of the kernel's four-node blocks in which a node left its interval in the
+    /// last step (pushed by the kernel: rare, so a list beats a mark per node).
+    escaped: Vec<usize>,
 }
 
 /// One interval of the map with the update's coefficients worked out once.
@@ -162,7 +163,7 @@ impl NodeFriction {
             g: vec![0.0; n],
             inv_g: vec![0.0; n],
             push: vec![0.0; n],
-            escaped: vec![0.0; n],
+            escaped: Vec::new(),
         }
     }
 
@@ -602,7 +603,8 @@ impl Solver {
             if let Some(m) = map.as_deref_mut().filter(|_| MAP) {
                 // Per-node friction: the coefficients and the interval bounds come from arrays.
                 let (gs, pushes, inv_gs) = (&m.g[..], &m.push[..], &m.inv_g[..]);
-                let (lo, hi, escaped) = (&m.u_lo[..], &m.u_hi[..], &mut m.escaped[..]);
+                let (lo, hi, escaped) = (&m.u_lo[..], &m.u_hi[..], &mut m.escaped);
+                escaped.clear();
                 while b < 1 + whole {
                     let r = b..b + LANES;
                     let (v_new, stuck) = node_simd::<FRICTION, true>(
@@ -620,9 +622,9 @@ impl Solver {
                     v_new.store(&mut v[r.clone()]);
                     stuck.store(&mut flags[r.clone()]);
                     change.store(&mut marks[r.clone()]);
-                    u_new
-                        .outside_as_one(F4::load(&lo[r.clone()]), F4::load(&hi[r.clone()]))
-                        .store(&mut escaped[r]);
+                    if u_new.any_outside(F4::load(&lo[r.clone()]), F4::load(&hi[r])) {
+                        escaped.push(b);
+                    }
                     any = any | change;
                     b += LANES;
                 }
@@ -762,15 +764,13 @@ impl Solver {
     fn follow_map(&mut self, whole: usize) {
         let n = self.cells();
         let Some(m) = &mut self.map else { return };
-        let mut b = 1;
-        while b < 1 + whole {
-            if F4::load(&m.escaped[b..b + LANES]).any_nonzero() {
-                for i in b..b + LANES {
-                    m.follow(i, self.u[i]);
-                }
+        let blocks = std::mem::take(&mut m.escaped);
+        for &b in &blocks {
+            for i in b..b + LANES {
+                m.follow(i, self.u[i]);
             }
-            b += LANES;
         }
+        m.escaped = blocks;
         m.follow(0, self.u[0]);
         for i in 1 + whole..n {
             m.follow(i, self.u[i]);
