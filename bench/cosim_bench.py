@@ -172,6 +172,15 @@ def main():
     for p in policies:
         mp_ = statistics.median(by_policy[p])
         print(f"| lockstep with the `{p}` controller | {mp_:.0f} | {mp_ / mb:.3f} of lockstep (`wave`) |")
+    # Each trial runs the compared columns back to back, so a trial's own ratio cancels the
+    # machine's slow drifts; their median is steadier than the ratio of the medians.
+    print()
+    print("per-trial ratios (median, range):")
+    pairs = [("authenticated / --no-auth", bare, noauth)]
+    pairs += [(f"{p} / wave", by_policy[p], bare) for p in policies]
+    for name, x, y in pairs:
+        r = sorted(a / b for a, b in zip(x, y))
+        print(f"  {name}: {statistics.median(r):.3f} ({r[0]:.2f} to {r[-1]:.2f}, {len(r)} trials)")
     print()
     whole = [s for s, f in zip(sizes, full) if f]
     if whole:
