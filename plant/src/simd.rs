@@ -100,10 +100,16 @@ impl F4 {
         self.0.cmp_ne(f64x4::ZERO).any()
     }
 
-    /// True if any lane lies outside `[lo, hi)`.
+    /// True if any lane of a mask (a comparison's result, see [`Self::outside`]) is set.
     #[inline(always)]
-    pub fn any_outside(self, lo: Self, hi: Self) -> bool {
-        (self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0)).any()
+    pub fn any_set(self) -> bool {
+        self.0.any()
+    }
+
+    /// A mask: all bits set in the lanes outside `[lo, hi)`, zero in the others.
+    #[inline(always)]
+    pub fn outside(self, lo: Self, hi: Self) -> Self {
+        Self(self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0))
     }
 
     /// Lane 0.
@@ -173,12 +179,19 @@ mod tests {
         assert!(!z.any_nonzero());
         let (lo, hi) = (F4::splat(-1.0), F4::splat(1.0));
         // [lo, hi): lo is inside, hi is not, in any lane
-        assert!(!F4(f64x4::new([-1.0, 0.0, 0.5, 0.999])).any_outside(lo, hi));
+        assert!(!F4(f64x4::new([-1.0, 0.0, 0.5, 0.999]))
+            .outside(lo, hi)
+            .any_set());
         for lane in 0..4 {
             for x in [-1.5, 1.0, f64::INFINITY] {
                 let mut v = [0.0; 4];
                 v[lane] = x;
-                assert!(F4(f64x4::new(v)).any_outside(lo, hi), "{v:?}");
+                let outside = F4(f64x4::new(v)).outside(lo, hi);
+                assert!(outside.any_set(), "{v:?}");
+                let mask = outside.lanes();
+                for (l, m) in mask.iter().enumerate() {
+                    assert_eq!(m.to_bits() != 0, l == lane, "{v:?}");
+                }
             }
         }
     }

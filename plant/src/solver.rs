@@ -122,9 +122,11 @@ struct NodeFriction {
     inv_g: Vec<f64>,
     /// `eps_i c_d n_F,i / a`, m/s.
     push: Vec<f64>,
-    /// First nodes of the kernel's four-node blocks in which a node left its interval in the
-    /// last step (pushed by the kernel: rare, so a list beats a mark per node).
+    /// First nodes of the chunks of [`ESCAPE_CHUNK`] nodes in which a node left its interval in
+    /// the last step: the first `escaped_count` entries (one slot per chunk, allocated once, so
+    /// the loops that fill it hold no call that would make the compiler spill registers).
     escaped: Vec<usize>,
+    escaped_count: usize,
 }
 
 /// One interval of the map with the update's coefficients worked out once.
@@ -163,7 +165,8 @@ impl NodeFriction {
             g: vec![0.0; n],
             inv_g: vec![0.0; n],
             push: vec![0.0; n],
-            escaped: Vec::new(),
+            escaped: vec![0; n / ESCAPE_CHUNK + 1],
+            escaped_count: 0,
         }
     }
 
@@ -219,6 +222,8 @@ pub struct Solver {
     last_sum_v: f64,
     /// 1.0 where stuck, 0.0 where sliding (the kernel's own copy of `stuck`).
     stuck_flags: Vec<f64>,
+    /// Number of stuck nodes, kept at every switch (so the kernel carries one reduction less).
+    stuck_count: usize,
     /// Per node: 1.0 if it switched between stick and slip in the last step.
     change_marks: Vec<f64>,
     /// True while `field` may be non-zero (general actuation).
@@ -284,6 +289,7 @@ impl Solver {
             v: vec![0.0; n],
             stuck: vec![false; n],
             stuck_flags: vec![0.0; n],
+            stuck_count: 0,
             change_marks: vec![0.0; n],
             last_sum_v: 0.0,
             field_active: false,
@@ -322,6 +328,7 @@ impl Solver {
     /// Sets the stick flags (restoring a state).
     pub fn set_stuck(&mut self, stuck: &[bool]) {
         self.stuck.clone_from_slice(stuck);
+        self.stuck_count = stuck.iter().filter(|&&s| s).count();
         for (f, &s) in self.stuck_flags.iter_mut().zip(stuck) {
             *f = if s { 1.0 } else { 0.0 };
         }
@@ -466,8 +473,15 @@ impl Solver {
             (None, true) => self.nodes::<true, false>(),
             (None, false) => self.nodes::<false, false>(),
         };
-        if self.coef.filter > 0.0 {
-            n.sum_v = self.filter();
+        // The nodes take the friction of where the step leaves them (after the filter's share).
+        match (self.coef.filter > 0.0, self.map.is_some()) {
+            (true, true) => n.sum_v = self.filter::<true>(),
+            (true, false) => n.sum_v = self.filter::<false>(),
+            (false, true) => self.scan_escapes(),
+            (false, false) => {}
+        }
+        if self.map.is_some() {
+            self.follow_map();
         }
         // Σ v⁻ of this step is Σ v⁺ of the last one: the same numbers summed in the same lane order.
         let sum_v_old = std::mem::replace(&mut self.last_sum_v, n.sum_v);
@@ -487,7 +501,7 @@ impl Solver {
 
     /// Pass 1: tensions at the half nodes, `T = (A_c E / dx) (u_{i+1} - u_i) + m`, with their
     /// reductions (four independent lanes, so the loop vectorises).
-    #[inline(always)]
+    #[inline(never)]
     fn tensions<const FIELD: bool>(&mut self, a: f64, b: f64) -> TensionSums {
         let c = self.coef;
         let n = self.cells();
@@ -567,7 +581,7 @@ impl Solver {
 
     /// Pass 2: new velocities with exact stick, displacements, and the stick/slip switches.
     /// `MAP`: per-node friction coefficients from the pipe's map.
-    #[inline(always)]
+    #[inline(never)]
     fn nodes<const FRICTION: bool, const MAP: bool>(&mut self) -> NodeSums {
         let c = self.coef;
         let n = self.cells();
@@ -581,7 +595,7 @@ impl Solver {
             let t = &self.tension[..];
             let flags = &mut self.stuck_flags[..];
             let marks = &mut self.change_marks[..];
-            let mut map = if MAP { self.map.as_mut() } else { None };
+            let map = if MAP { self.map.as_mut() } else { None };
             let scalar_coefficients = |map: &Option<&mut NodeFriction>, i: usize| match map {
                 Some(m) => (m.g[i], m.push[i], m.inv_g[i]),
                 None => (k.g.first(), k.push.first(), k.inv_g.first()),
@@ -598,59 +612,29 @@ impl Solver {
                 &mut acc,
             );
             changed = marks[0].to_bits();
-            let mut any = F4::default();
-            let mut b = 1;
-            if let Some(m) = map.as_deref_mut().filter(|_| MAP) {
-                // Per-node friction: the coefficients and the interval bounds come from arrays.
-                let (gs, pushes, inv_gs) = (&m.g[..], &m.push[..], &m.inv_g[..]);
-                let (lo, hi, escaped) = (&m.u_lo[..], &m.u_hi[..], &mut m.escaped);
-                escaped.clear();
-                while b < 1 + whole {
-                    let r = b..b + LANES;
-                    let (v_new, stuck) = node_simd::<FRICTION, true>(
-                        &k,
-                        F4::load(&v[r.clone()]),
-                        F4::load(&t[r.clone()]) - F4::load(&t[b - 1..b - 1 + LANES]),
-                        F4::load(&gs[r.clone()]),
-                        F4::load(&pushes[r.clone()]),
-                        F4::load(&inv_gs[r.clone()]),
-                        &mut acc,
-                    );
-                    let change = stuck ^ F4::load(&flags[r.clone()]);
-                    let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
-                    u_new.store(&mut u[r.clone()]);
-                    v_new.store(&mut v[r.clone()]);
-                    stuck.store(&mut flags[r.clone()]);
-                    change.store(&mut marks[r.clone()]);
-                    if u_new.any_outside(F4::load(&lo[r.clone()]), F4::load(&hi[r])) {
-                        escaped.push(b);
-                    }
-                    any = any | change;
-                    b += LANES;
-                }
-            } else {
-                while b < 1 + whole {
-                    let r = b..b + LANES;
-                    let (v_new, stuck) = node_simd::<FRICTION, false>(
-                        &k,
-                        F4::load(&v[r.clone()]),
-                        F4::load(&t[r.clone()]) - F4::load(&t[b - 1..b - 1 + LANES]),
-                        k.g,
-                        k.push,
-                        k.inv_g,
-                        &mut acc,
-                    );
-                    let change = stuck ^ F4::load(&flags[r.clone()]);
-                    let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
-                    u_new.store(&mut u[r.clone()]);
-                    v_new.store(&mut v[r.clone()]);
-                    stuck.store(&mut flags[r.clone()]);
-                    change.store(&mut marks[r]);
-                    any = any | change;
-                    b += LANES;
-                }
-            }
-            if any.any_nonzero() {
+            let per_node: [&[f64]; 3] = match map.as_deref().filter(|_| MAP) {
+                Some(m) => [
+                    &m.g[1..1 + whole],
+                    &m.push[1..1 + whole],
+                    &m.inv_g[1..1 + whole],
+                ],
+                None => [&[], &[], &[]],
+            };
+            let any;
+            (acc, any) = node_blocks::<FRICTION, MAP>(
+                &k,
+                acc,
+                Blocks {
+                    u: &mut u[1..1 + whole],
+                    v: &mut v[1..1 + whole],
+                    t_here: &t[1..1 + whole],
+                    t_before: &t[..whole],
+                    flags: &mut flags[1..1 + whole],
+                    marks: &mut marks[1..1 + whole],
+                },
+                per_node,
+            );
+            if any {
                 changed |= 1;
             }
             for i in 1 + whole..n {
@@ -688,10 +672,7 @@ impl Solver {
                 }
             }
         }
-        if MAP {
-            self.follow_map(whole);
-        }
-        acc.finish(&c, n, MAP)
+        acc.finish(&c, n, MAP, self.stuck_count)
     }
 
     /// Pass 3: the grid filter. With the fourth difference written as a difference of fluxes,
@@ -702,8 +683,11 @@ impl Solver {
     /// at the edges of stick phases are left alone, and the sum of the velocities (the momentum)
     /// is unchanged. The Nyquist mode loses the share `filter` per step; a mode of `theta`
     /// radians per cell `filter (1 - cos theta)^2 / 4`, so resolved waves are untouched to fourth
-    /// order. Returns the sum of the new velocities.
-    fn filter(&mut self) -> f64 {
+    /// order. Returns the sum of the new velocities. `MAP`: also lists the chunks in which a node
+    /// left its piece of the pipe's map (see [`Self::scan_escapes`]), each right after its
+    /// displacements are written (still in the first-level cache).
+    #[inline(never)]
+    fn filter<const MAP: bool>(&mut self) -> f64 {
         let n = self.cells();
         if self.face_open.len() != n {
             self.refresh_faces(0..n);
@@ -736,17 +720,40 @@ impl Solver {
         let k = F4::splat(-self.coef.filter / 16.0);
         let dt = F4::splat(self.coef.dt);
         let (u, v, flux) = (&mut self.u[..], &mut self.v[..], &self.flux[..]);
+        let end = 1 + (n - 1) / LANES * LANES;
+        let (lo, hi, escaped): (&[f64], &[f64], &mut [usize]) =
+            match self.map.as_mut().filter(|_| MAP) {
+                Some(m) => (&m.u_lo, &m.u_hi, &mut m.escaped),
+                None => (&[], &[], &mut []),
+            };
+        let mut count = 0;
         let mut sum = F4::default();
-        let mut i = 1;
-        while i + LANES <= n {
-            let r = i..i + LANES;
-            let dv = k * (F4::load(&flux[r.clone()]) - F4::load(&flux[i - 1..i + 3]));
-            let vn = F4::load(&v[r.clone()]) + dv;
-            vn.store(&mut v[r.clone()]);
-            (F4::load(&u[r.clone()]) + dt * dv).store(&mut u[r]);
-            sum = sum + vn;
-            i += LANES;
+        let mut chunk = 1;
+        while chunk < end {
+            let stop = (chunk + ESCAPE_CHUNK).min(end);
+            let blocks = flux[chunk..stop]
+                .chunks_exact(LANES)
+                .zip(flux[chunk - 1..stop - 1].chunks_exact(LANES))
+                .zip(v[chunk..stop].chunks_exact_mut(LANES))
+                .zip(u[chunk..stop].chunks_exact_mut(LANES));
+            for (((f, before), vb), ub) in blocks {
+                let dv = k * (F4::load(f) - F4::load(before));
+                let vn = F4::load(vb) + dv;
+                vn.store(vb);
+                (F4::load(ub) + dt * dv).store(ub);
+                sum = sum + vn;
+            }
+            // the chunk's displacements are still in the first-level cache
+            if MAP && left_piece(&u[chunk..stop], &lo[chunk..stop], &hi[chunk..stop]) {
+                escaped[count] = chunk;
+                count += 1;
+            }
+            chunk = stop;
         }
+        if let Some(m) = self.map.as_mut().filter(|_| MAP) {
+            m.escaped_count = count;
+        }
+        let i = end;
         let (kf, dtf) = (k.first(), dt.first());
         let mut tail = 0.0;
         for j in (i..n).chain([0]) {
@@ -759,20 +766,39 @@ impl Solver {
         sum.sum() + tail
     }
 
-    /// Moves the nodes that left their map interval to the interval they are in now: those the
-    /// kernel marked, node 0 and the scalar tail.
-    fn follow_map(&mut self, whole: usize) {
+    /// Lists the chunks of [`ESCAPE_CHUNK`] nodes (of the whole four-node blocks from node 1) in
+    /// which a node left its piece of the pipe's map. Without the grid filter this is a pass of its
+    /// own; with it, [`Self::filter`] does the same as it writes the displacements.
+    fn scan_escapes(&mut self) {
         let n = self.cells();
         let Some(m) = &mut self.map else { return };
-        let blocks = std::mem::take(&mut m.escaped);
-        for &b in &blocks {
-            for i in b..b + LANES {
+        let end = 1 + (n - 1) / LANES * LANES;
+        let mut count = 0;
+        for chunk in (1..end).step_by(ESCAPE_CHUNK) {
+            let stop = (chunk + ESCAPE_CHUNK).min(end);
+            let (lo, hi) = (&m.u_lo[chunk..stop], &m.u_hi[chunk..stop]);
+            if left_piece(&self.u[chunk..stop], lo, hi) {
+                m.escaped[count] = chunk;
+                count += 1;
+            }
+        }
+        m.escaped_count = count;
+    }
+
+    /// Moves the nodes that left their map interval to the interval they are in now: those in
+    /// the listed chunks, node 0 and the scalar tail (checked exactly, node by node).
+    fn follow_map(&mut self) {
+        let n = self.cells();
+        let Some(m) = &mut self.map else { return };
+        let end = 1 + (n - 1) / LANES * LANES;
+        for c in 0..m.escaped_count {
+            let chunk = m.escaped[c];
+            for i in chunk..(chunk + ESCAPE_CHUNK).min(end) {
                 m.follow(i, self.u[i]);
             }
         }
-        m.escaped = blocks;
         m.follow(0, self.u[0]);
-        for i in 1 + whole..n {
+        for i in end..n {
             m.follow(i, self.u[i]);
         }
     }
@@ -782,6 +808,11 @@ impl Solver {
         let n = self.cells();
         let stuck = self.stuck_flags[i] != 0.0;
         self.stuck[i] = stuck;
+        if stuck {
+            self.stuck_count += 1;
+        } else {
+            self.stuck_count -= 1;
+        }
         if self.coef.filter > 0.0 {
             self.refresh_faces(i..i + 1);
         }
@@ -862,17 +893,88 @@ fn node_simd<const FRICTION: bool, const MAP: bool>(
     let (v_new, s, stuck) = if FRICTION {
         let excess = b.abs() - g;
         let v_new = excess.max(zero) | b.sign();
-        let q = (b * inv_g).min(one).max(F4::splat(-1.0));
+        // `b / g` clamped to [-1, 1] (the same bits as clamping `b inv_g` both ways)
+        let q = (b.abs() * inv_g).min(one) | b.sign();
         let s = excess.select_le(zero, q, one | b.sign());
         (v_new, s, excess.le_as_one(zero))
     } else {
         (b, zero, zero)
     };
-    acc.add::<MAP>(v_new, v_old, s, stuck);
+    acc.add::<MAP>(v_new, v_old, s);
     if MAP {
         acc.add_map(v_new, s, g, push);
     }
     (v_new, stuck)
+}
+
+/// The arrays of the kernel's whole four-node blocks (nodes `1 ..= whole`), all of one length;
+/// `t_before` is the tension one half node to the left.
+struct Blocks<'a> {
+    u: &'a mut [f64],
+    v: &'a mut [f64],
+    t_here: &'a [f64],
+    t_before: &'a [f64],
+    flags: &'a mut [f64],
+    marks: &'a mut [f64],
+}
+
+/// Pass 2 over whole four-node blocks: [`node_simd`] with the uniform coefficients of `k`, or
+/// with `MAP` the per-node `[g, push, inv_g]` (same length as the blocks). Stores the new
+/// velocities, displacements, stick flags and change marks; returns the accumulators and
+/// whether any node switched. A function of its own with local accumulators, so they stay in
+/// registers.
+#[inline(never)]
+fn node_blocks<const FRICTION: bool, const MAP: bool>(
+    k: &NodeConstants,
+    mut acc: NodeLanes,
+    blocks: Blocks,
+    [gs, pushes, inv_gs]: [&[f64]; 3],
+) -> (NodeLanes, bool) {
+    let len = blocks.u.len();
+    let (u, v, flags, marks) = (
+        &mut blocks.u[..len],
+        &mut blocks.v[..len],
+        &mut blocks.flags[..len],
+        &mut blocks.marks[..len],
+    );
+    let (t_here, t_before) = (&blocks.t_here[..len], &blocks.t_before[..len]);
+    let (gs, pushes, inv_gs) = if MAP {
+        (&gs[..len], &pushes[..len], &inv_gs[..len])
+    } else {
+        (gs, pushes, inv_gs)
+    };
+    let mut any = F4::default();
+    let mut j = 0;
+    while j + LANES <= len {
+        let r = j..j + LANES;
+        let (g, push, inv_g) = if MAP {
+            (
+                F4::load(&gs[r.clone()]),
+                F4::load(&pushes[r.clone()]),
+                F4::load(&inv_gs[r.clone()]),
+            )
+        } else {
+            (k.g, k.push, k.inv_g)
+        };
+        let (v_new, stuck) = node_simd::<FRICTION, MAP>(
+            k,
+            F4::load(&v[r.clone()]),
+            F4::load(&t_here[r.clone()]) - F4::load(&t_before[r.clone()]),
+            g,
+            push,
+            inv_g,
+            &mut acc,
+        );
+        let change = stuck ^ F4::load(&flags[r.clone()]);
+        let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
+        u_new.store(&mut u[r.clone()]);
+        v_new.store(&mut v[r.clone()]);
+        stuck.store(&mut flags[r.clone()]);
+        change.store(&mut marks[r]);
+        any = any | change;
+        j += LANES;
+    }
+    (acc, any.any_nonzero())
 }
 
 /// One node, the same operations as one lane of [`node_simd`]; returns the change mark.
@@ -889,13 +991,13 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
 ) -> f64 {
     let v_old = *v;
     let b = k.beta.first() * v_old + k.gamma_inv_dx.first() * tension_difference + push;
-    let (v_new, s, stuck) = if FRICTION {
+    let (v_new, s, stuck): (f64, f64, f64) = if FRICTION {
         let sel = crate::friction::select_with_inverse(b, g, inv_g);
         (sel.velocity, sel.s, if sel.stuck { 1.0 } else { 0.0 })
     } else {
         (b, 0.0, 0.0)
     };
-    acc.add_scalar(v_new, v_old, s, stuck);
+    acc.add_scalar(v_new, v_old, s);
     if MAP {
         acc.add_map_scalar(v_new, s, g, push);
     }
@@ -906,8 +1008,27 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
     change
 }
 
+/// True if a node of the chunk `u` lies outside its interval `[lo, hi)` (whole blocks of
+/// [`LANES`] nodes; the blocks' results are ORed and tested once per chunk).
+#[inline(always)]
+fn left_piece(u: &[f64], lo: &[f64], hi: &[f64]) -> bool {
+    let mut out = F4::default();
+    let blocks = u
+        .chunks_exact(LANES)
+        .zip(lo.chunks_exact(LANES))
+        .zip(hi.chunks_exact(LANES));
+    for ((x, l), h) in blocks {
+        out = out | F4::load(x).outside(F4::load(l), F4::load(h));
+    }
+    out.any_set()
+}
+
 /// Lanes of the reductions: independent accumulators so the loops vectorise.
 const LANES: usize = 4;
+
+/// Nodes per chunk of the check against the pipe map's edges (a multiple of [`LANES`]): the
+/// check ORs the blocks of a chunk and tests once per chunk.
+const ESCAPE_CHUNK: usize = 16 * LANES;
 
 /// `x` in lane 0, zeros elsewhere (adding it changes lane 0 only, exactly: `y + 0.0 = y`).
 #[inline(always)]
@@ -977,7 +1098,6 @@ impl TensionLanes {
 struct NodeLanes {
     sum_v: F4,
     sum_s: F4,
-    stuck: F4,
     /// sum of (v_old + v_new)^2
     sum_vm2: F4,
     /// sum of |v_new|
@@ -999,11 +1119,10 @@ struct NodeSums {
 impl NodeLanes {
     /// The reductions every node adds (`sum_abs_v` only with uniform friction).
     #[inline(always)]
-    fn add<const MAP: bool>(&mut self, v_new: F4, v_old: F4, s: F4, stuck: F4) {
+    fn add<const MAP: bool>(&mut self, v_new: F4, v_old: F4, s: F4) {
         let vs = v_old + v_new;
         self.sum_v = self.sum_v + v_new;
         self.sum_s = self.sum_s + s;
-        self.stuck = self.stuck + stuck;
         self.sum_vm2 = self.sum_vm2 + vs * vs;
         if !MAP {
             self.sum_abs_v = self.sum_abs_v + v_new.abs();
@@ -1018,11 +1137,10 @@ impl NodeLanes {
     }
 
     #[inline(always)]
-    fn add_scalar(&mut self, v_new: f64, v_old: f64, s: f64, stuck: f64) {
+    fn add_scalar(&mut self, v_new: f64, v_old: f64, s: f64) {
         let vs = v_old + v_new;
         self.sum_v = self.sum_v + lane0(v_new);
         self.sum_s = self.sum_s + lane0(s);
-        self.stuck = self.stuck + lane0(stuck);
         self.sum_vm2 = self.sum_vm2 + lane0(vs * vs);
         self.sum_abs_v = self.sum_abs_v + lane0(v_new.abs());
     }
@@ -1036,8 +1154,9 @@ impl NodeLanes {
 
     /// Combines the lanes. Dissipation density summed over nodes:
     /// `c_v sum ((v⁻ + v⁺)/2)^2 + sum eps_i c_d (s - n_F,i) v⁺`, where `s v⁺ = |v⁺|` exactly;
-    /// with per-node friction `eps_i c_d = a g_i` and `eps_i c_d n_F,i = a push_i`.
-    fn finish(&self, c: &Coefficients, cells: usize, map: bool) -> NodeSums {
+    /// with per-node friction `eps_i c_d = a g_i` and `eps_i c_d n_F,i = a push_i`. `stuck`: the
+    /// number of stuck nodes after the step.
+    fn finish(&self, c: &Coefficients, cells: usize, map: bool, stuck: usize) -> NodeSums {
         let sum_v = self.sum_v.sum();
         let sum_s = self.sum_s.sum();
         let viscous = 0.25 * c.viscous * self.sum_vm2.sum();
@@ -1053,7 +1172,7 @@ impl NodeLanes {
             sum_v,
             sum_s,
             friction_force,
-            stuck: self.stuck.sum(),
+            stuck: stuck as f64,
             dissipation: viscous + coulomb,
         }
     }
