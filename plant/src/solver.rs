@@ -122,6 +122,8 @@ struct NodeFriction {
     inv_g: Vec<f64>,
     /// `eps_i c_d n_F,i / a`, m/s.
     push: Vec<f64>,
+    /// n_F where it is the same in every interval (then `push = g n_F`, one array less to read).
+    uniform_n_f: Option<f64>,
     /// First nodes of the chunks of [`ESCAPE_CHUNK`] nodes in which a node left its interval in
     /// the last step: the first `escaped_count` entries (one slot per chunk, allocated once, so
     /// the loops that fill it hold no call that would make the compiler spill registers).
@@ -154,8 +156,12 @@ impl NodeFriction {
                     push: g * l.n_f,
                 }
             })
-            .collect();
+            .collect::<Vec<Interval>>();
+        let n_f = map.interval(0).n_f;
+        let uniform_n_f =
+            (0..intervals.len()).all(|j| map.interval(j).n_f.to_bits() == n_f.to_bits());
         Self {
+            uniform_n_f: uniform_n_f.then_some(n_f),
             map,
             intervals,
             origin,
@@ -612,28 +618,32 @@ impl Solver {
                 &mut acc,
             );
             changed = marks[0].to_bits();
-            let per_node: [&[f64]; 3] = match map.as_deref().filter(|_| MAP) {
-                Some(m) => [
-                    &m.g[1..1 + whole],
-                    &m.push[1..1 + whole],
-                    &m.inv_g[1..1 + whole],
-                ],
-                None => [&[], &[], &[]],
+            let (per_node, uniform_n_f) = match map.as_deref().filter(|_| MAP) {
+                Some(m) => (
+                    PerNode {
+                        g: &m.g[1..1 + whole],
+                        push: &m.push[1..1 + whole],
+                        inv_g: &m.inv_g[1..1 + whole],
+                        n_f: m.uniform_n_f.unwrap_or(0.0),
+                    },
+                    m.uniform_n_f.is_some(),
+                ),
+                None => (PerNode::default(), true),
+            };
+            let blocks = Blocks {
+                u: &mut u[1..1 + whole],
+                v: &mut v[1..1 + whole],
+                t_here: &t[1..1 + whole],
+                t_before: &t[..whole],
+                flags: &mut flags[1..1 + whole],
+                marks: &mut marks[1..1 + whole],
             };
             let any;
-            (acc, any) = node_blocks::<FRICTION, MAP>(
-                &k,
-                acc,
-                Blocks {
-                    u: &mut u[1..1 + whole],
-                    v: &mut v[1..1 + whole],
-                    t_here: &t[1..1 + whole],
-                    t_before: &t[..whole],
-                    flags: &mut flags[1..1 + whole],
-                    marks: &mut marks[1..1 + whole],
-                },
-                per_node,
-            );
+            (acc, any) = if !MAP || uniform_n_f {
+                node_blocks::<FRICTION, MAP, false>(&k, acc, blocks, per_node)
+            } else {
+                node_blocks::<FRICTION, MAP, true>(&k, acc, blocks, per_node)
+            };
             if any {
                 changed |= 1;
             }
@@ -918,18 +928,36 @@ struct Blocks<'a> {
     marks: &'a mut [f64],
 }
 
+/// Per-node friction coefficients of the blocks (empty with uniform friction): `g`, `inv_g`,
+/// and `push` per node, or where n_F is the same all along the map, `push = g n_f`.
+#[derive(Default)]
+struct PerNode<'a> {
+    g: &'a [f64],
+    push: &'a [f64],
+    inv_g: &'a [f64],
+    n_f: f64,
+}
+
 /// Pass 2 over whole four-node blocks: [`node_simd`] with the uniform coefficients of `k`, or
-/// with `MAP` the per-node `[g, push, inv_g]` (same length as the blocks). Stores the new
+/// with `MAP` the per-node ones (same length as the blocks; `PUSH`: `push` from its array, else
+/// `g n_f`). Stores the new
 /// velocities, displacements, stick flags and change marks; returns the accumulators and
 /// whether any node switched. A function of its own with local accumulators, so they stay in
 /// registers.
 #[inline(never)]
-fn node_blocks<const FRICTION: bool, const MAP: bool>(
+fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool>(
     k: &NodeConstants,
     mut acc: NodeLanes,
     blocks: Blocks,
-    [gs, pushes, inv_gs]: [&[f64]; 3],
+    coefficients: PerNode,
 ) -> (NodeLanes, bool) {
+    let PerNode {
+        g: gs,
+        push: pushes,
+        inv_g: inv_gs,
+        n_f,
+    } = coefficients;
+    let n_f = F4::splat(n_f);
     let len = blocks.u.len();
     let (u, v, flags, marks) = (
         &mut blocks.u[..len],
@@ -938,21 +966,25 @@ fn node_blocks<const FRICTION: bool, const MAP: bool>(
         &mut blocks.marks[..len],
     );
     let (t_here, t_before) = (&blocks.t_here[..len], &blocks.t_before[..len]);
-    let (gs, pushes, inv_gs) = if MAP {
-        (&gs[..len], &pushes[..len], &inv_gs[..len])
+    let (gs, inv_gs) = if MAP {
+        (&gs[..len], &inv_gs[..len])
     } else {
-        (gs, pushes, inv_gs)
+        (gs, inv_gs)
     };
+    let pushes = if PUSH { &pushes[..len] } else { pushes };
     let mut any = F4::default();
     let mut j = 0;
     while j + LANES <= len {
         let r = j..j + LANES;
         let (g, push, inv_g) = if MAP {
-            (
-                F4::load(&gs[r.clone()]),
-                F4::load(&pushes[r.clone()]),
-                F4::load(&inv_gs[r.clone()]),
-            )
+            let g = F4::load(&gs[r.clone()]);
+            // `g n_F` is how the map's `push` is worked out: the same bits
+            let push = if PUSH {
+                F4::load(&pushes[r.clone()])
+            } else {
+                g * n_f
+            };
+            (g, push, F4::load(&inv_gs[r.clone()]))
         } else {
             (k.g, k.push, k.inv_g)
         };
