@@ -1209,3 +1209,51 @@ impl NodeLanes {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paper's plant on 256 cells in a pipe whose eps (and with `n_f_std > 0` n_F) varies.
+    fn textured(n_f_std: f64) -> Solver {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scenarios/paper.toml"
+        ))
+        .unwrap()
+            + &format!(
+                "\n[pipe]\n[[pipe.features]]\nkind = \"texture\"\nfrom = -1.0\nto = 3.0\n\
+                 eps_std = 0.1\nn_f_std = {n_f_std:?}\ncorrelation = 0.002\nseed = 4\n"
+            );
+        let s = crate::Scenario::from_toml(&text, "<test>", &Default::default()).unwrap();
+        let mut p = s.plant.clone();
+        p.numerics.cells = 256;
+        Solver::new(&p, &p.discretisation().unwrap())
+    }
+
+    #[test]
+    fn computing_push_from_a_uniform_n_f_gives_the_bits_of_reading_it() {
+        let mut computed = textured(0.0);
+        assert!(computed.map.as_ref().unwrap().uniform_n_f.is_some());
+        let mut read = computed.clone();
+        read.map.as_mut().unwrap().uniform_n_f = None;
+        let mut transitions = 0;
+        for n in 0..20_000 {
+            let (a, b) = ((n as f64 * 1e-3).sin() * 0.3, (n as f64 * 1e-3).cos() * 0.3);
+            let (x, y) = (computed.step(a, b), read.step(a, b));
+            assert_eq!(x.dissipation.to_bits(), y.dissipation.to_bits(), "step {n}");
+            assert_eq!(x.friction_force.to_bits(), y.friction_force.to_bits());
+            transitions += computed.transitions.len();
+        }
+        let bits = |s: &Solver| {
+            s.u.iter()
+                .chain(&s.v)
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&computed), bits(&read));
+        assert!(transitions > 100, "{transitions} stick/slip switches");
+        // and a map whose n_F varies reads its push
+        assert!(textured(0.05).map.unwrap().uniform_n_f.is_none());
+    }
+}
