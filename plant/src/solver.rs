@@ -940,10 +940,9 @@ struct PerNode<'a> {
 
 /// Pass 2 over whole four-node blocks: [`node_simd`] with the uniform coefficients of `k`, or
 /// with `MAP` the per-node ones (same length as the blocks; `PUSH`: `push` from its array, else
-/// `g n_f`). Stores the new
-/// velocities, displacements, stick flags and change marks; returns the accumulators and
-/// whether any node switched. A function of its own with local accumulators, so they stay in
-/// registers.
+/// `g n_f`). Stores the new velocities, displacements, stick flags and change marks; returns the
+/// accumulators and whether any node switched. A function of its own with local accumulators,
+/// so they stay in registers.
 #[inline(never)]
 fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool>(
     k: &NodeConstants,
