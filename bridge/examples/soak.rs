@@ -29,29 +29,7 @@ fn main() -> anyhow::Result<()> {
         .unwrap_or_else(|| "/tmp/soak.rrd".into());
     let rec = crawler_bridge::recorder::open_file(std::path::Path::new(&out), false)?;
     let mut r = Recorder::new(rec, RecorderOptions::default())?;
-    r.set_model(
-        &ModelInfo {
-            v: PROTOCOL_VERSION,
-            run: "soak".into(),
-            cells: cells as u64,
-            length: 1.0,
-            step: 1e-3,
-            start_time: 0.0,
-            last_step: steps,
-            area: 1e-4,
-            density: 0.1,
-            youngs_modulus: 140e3,
-            viscous: 1.0,
-            dry: 1.0,
-            eps: 0.1,
-            n_f: 0.5,
-            settle: 5.0,
-            model_description: "{}".into(),
-            boundary: "periodic".into(),
-            disclosed: true,
-        },
-        None,
-    )?;
+    r.set_model(&ModelInfo::example("soak", cells as u64, steps), None)?;
     let started = std::time::Instant::now();
     for n in 0..=steps {
         let t = n as f64 * 1e-3;

@@ -1086,6 +1086,35 @@ fn disclosed() -> bool {
     true
 }
 
+impl ModelInfo {
+    /// A plant on the uniform test body of the examples and tests: 1 m long, cross-section
+    /// 1e-4 m2, 0.1 kg/m, E = 140 kPa, c_v = 1 N.s/m2, c_d = 1 N/m, eps = 0.1, n_F = 0.5 (told
+    /// to controllers), periodic, 1 ms communication steps from t = 0, 5 s settling; run `run`,
+    /// `cells` cells, the last communication step `last_step`.
+    pub fn example(run: &str, cells: u64, last_step: u64) -> Self {
+        Self {
+            v: PROTOCOL_VERSION,
+            run: run.into(),
+            cells,
+            length: 1.0,
+            step: 1e-3,
+            start_time: 0.0,
+            last_step,
+            area: 1e-4,
+            density: 0.1,
+            youngs_modulus: 140e3,
+            viscous: 1.0,
+            dry: 1.0,
+            eps: 0.1,
+            n_f: 0.5,
+            settle: 5.0,
+            model_description: "{}".into(),
+            boundary: "periodic".into(),
+            disclosed: true,
+        }
+    }
+}
+
 impl Message for ModelInfo {
     const NAME: &'static str = "model";
     fn version(&self) -> u16 {

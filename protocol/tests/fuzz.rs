@@ -165,26 +165,7 @@ fn samples() -> Samples {
             }),
         }],
     };
-    let model = ModelInfo {
-        v: PROTOCOL_VERSION,
-        run: "r".into(),
-        cells: n as u64,
-        length: 1.0,
-        step: 1e-3,
-        start_time: 0.0,
-        last_step: 100,
-        area: 1e-4,
-        density: 0.1,
-        youngs_modulus: 140e3,
-        viscous: 1.0,
-        dry: 1.0,
-        eps: 0.1,
-        n_f: 0.5,
-        settle: 5.0,
-        model_description: "{}".into(),
-        boundary: "periodic".into(),
-        disclosed: true,
-    };
+    let model = ModelInfo::example("r", n as u64, 100);
     (
         state, act, field, events, metrics, status, prediction, model,
     )

@@ -209,26 +209,7 @@ fn prediction() -> Prediction {
 }
 
 fn model_info() -> ModelInfo {
-    ModelInfo {
-        v: V,
-        run: "demo".into(),
-        cells: 2,
-        length: 1.0,
-        step: 0.001,
-        start_time: 0.0,
-        last_step: 10,
-        area: 1e-4,
-        density: 0.1,
-        youngs_modulus: 140e3,
-        viscous: 1.0,
-        dry: 1.0,
-        eps: 0.1,
-        n_f: 0.5,
-        settle: 5.0,
-        model_description: "{}".into(),
-        boundary: "periodic".into(),
-        disclosed: true,
-    }
+    ModelInfo::example("demo", 2, 10)
 }
 
 /// 16 bytes per line: offset, hex bytes, printable ASCII.

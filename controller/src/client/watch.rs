@@ -212,26 +212,7 @@ mod tests {
     use crawler_protocol::PROTOCOL_VERSION;
 
     fn info(last_step: u64) -> ModelInfo {
-        ModelInfo {
-            v: PROTOCOL_VERSION,
-            run: "r".into(),
-            cells: 2,
-            length: 1.0,
-            step: 0.001,
-            start_time: 0.0,
-            last_step,
-            area: 1e-4,
-            density: 0.1,
-            youngs_modulus: 140e3,
-            viscous: 1.0,
-            dry: 1.0,
-            eps: 0.1,
-            n_f: 0.5,
-            settle: 5.0,
-            model_description: "{}".into(),
-            boundary: "periodic".into(),
-            disclosed: true,
-        }
+        ModelInfo::example("r", 2, last_step)
     }
 
     fn status(state: &str, step: u64) -> Status {
