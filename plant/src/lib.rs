@@ -27,6 +27,7 @@ pub mod framing;
 pub mod friction;
 pub mod metrics;
 pub mod model_description;
+mod node_friction;
 pub mod params;
 pub mod pipe;
 pub mod plant;

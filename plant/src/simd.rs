@@ -5,9 +5,12 @@
 //! Only correctly rounded IEEE operations and exact selects are used (no fused multiply-add),
 //! so every build gives the same bits, and a lane computes exactly what the scalar code does.
 
-use std::ops::{Add, BitOr, BitXor, Mul, Sub};
+use std::ops::{Add, BitAnd, BitOr, BitXor, Mul, Sub};
 
 use wide::{f64x4, CmpGe, CmpLe, CmpLt, CmpNe};
+
+/// Lanes of an [`F4`]: the kernel works on blocks of this many nodes.
+pub const LANES: usize = 4;
 
 /// Four f64 lanes.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -81,6 +84,19 @@ impl F4 {
         ((l[0] + l[1]) + l[2]) + l[3]
     }
 
+    /// Smallest lane (`a < b ? a : b` folded from lane 0).
+    #[inline(always)]
+    pub fn min_lane(self) -> f64 {
+        let l = self.lanes();
+        let m = if l[1] < l[0] { l[1] } else { l[0] };
+        let m = if l[2] < m { l[2] } else { m };
+        if l[3] < m {
+            l[3]
+        } else {
+            m
+        }
+    }
+
     /// Largest lane (`a > b ? a : b` folded from lane 0).
     #[inline(always)]
     pub fn max_lane(self) -> f64 {
@@ -100,16 +116,22 @@ impl F4 {
         self.0.cmp_ne(f64x4::ZERO).any()
     }
 
-    /// True if any lane of a mask (a comparison's result, see [`Self::outside`]) is set.
+    /// A mask: all bits set in the lanes inside `[lo, hi)`, zero in the others (and where NaN).
     #[inline(always)]
-    pub fn any_set(self) -> bool {
-        self.0.any()
+    pub fn inside(self, lo: Self, hi: Self) -> Self {
+        Self(self.0.cmp_ge(lo.0) & self.0.cmp_lt(hi.0))
     }
 
-    /// A mask: all bits set in the lanes outside `[lo, hi)`, zero in the others.
+    /// True if every lane of a mask (a comparison's result, see [`Self::inside`]) is set.
     #[inline(always)]
-    pub fn outside(self, lo: Self, hi: Self) -> Self {
-        Self(self.0.cmp_lt(lo.0) | self.0.cmp_ge(hi.0))
+    pub fn all_set(self) -> bool {
+        self.0.all()
+    }
+
+    /// True if `self < o` in every lane (false where either is NaN).
+    #[inline(always)]
+    pub fn all_lt(self, o: Self) -> bool {
+        self.0.cmp_lt(o.0).all()
     }
 
     /// Lane 0.
@@ -151,6 +173,14 @@ impl BitOr for F4 {
     }
 }
 
+impl BitAnd for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn bitand(self, o: F4) -> F4 {
+        F4(self.0 & o.0)
+    }
+}
+
 impl BitXor for F4 {
     type Output = F4;
     #[inline(always)]
@@ -175,23 +205,33 @@ mod tests {
             [9.0, 7.0, 7.0, 7.0]
         );
         assert_eq!(F4(f64x4::new([1.0, 5.0, -3.0, 2.0])).max_lane(), 5.0);
+        assert_eq!(F4(f64x4::new([1.0, 5.0, -3.0, 2.0])).min_lane(), -3.0);
         assert!(F4(f64x4::new([0.0, 0.0, 1.0, 0.0])).any_nonzero());
         assert!(!z.any_nonzero());
-        let (lo, hi) = (F4::splat(-1.0), F4::splat(1.0));
-        // [lo, hi): lo is inside, hi is not, in any lane
-        assert!(!F4(f64x4::new([-1.0, 0.0, 0.5, 0.999]))
-            .outside(lo, hi)
-            .any_set());
+        let one = F4::splat(1.0);
+        assert!(F4(f64x4::new([-1.0, 0.0, 0.5, 0.999])).all_lt(one));
+        let (lo, hi) = (F4::splat(-1.0), one);
+        // [lo, hi): lo is inside, hi is not, in any lane; NaN is not inside
+        assert!(F4(f64x4::new([-1.0, 0.0, 0.5, 0.999]))
+            .inside(lo, hi)
+            .all_set());
         for lane in 0..4 {
-            for x in [-1.5, 1.0, f64::INFINITY] {
+            for x in [-1.5, 1.0, f64::INFINITY, f64::NAN] {
                 let mut v = [0.0; 4];
                 v[lane] = x;
-                let outside = F4(f64x4::new(v)).outside(lo, hi);
-                assert!(outside.any_set(), "{v:?}");
-                let mask = outside.lanes();
+                let inside = F4(f64x4::new(v)).inside(lo, hi);
+                assert!(!inside.all_set(), "{v:?}");
+                let mask = (inside & F4::load(&[f64::from_bits(u64::MAX); 4])).lanes();
                 for (l, m) in mask.iter().enumerate() {
-                    assert_eq!(m.to_bits() != 0, l == lane, "{v:?}");
+                    assert_eq!(m.to_bits() == 0, l == lane, "{v:?}");
                 }
+            }
+        }
+        for lane in 0..4 {
+            for x in [1.0, 1.5, f64::INFINITY, f64::NAN] {
+                let mut v = [0.0; 4];
+                v[lane] = x;
+                assert!(!F4(f64x4::new(v)).all_lt(one), "{v:?}");
             }
         }
     }

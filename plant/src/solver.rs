@@ -35,9 +35,9 @@
 //! its momentum carried it there (the force on it outside the band: a velocity reversal) is
 //! marked ([`Transition::reversal`]) and gets no stick time.
 
+use crate::node_friction::{chunk_left, NodeFriction, CHUNK_BLOCKS, MIXED};
 use crate::params::{Boundary, Discretisation, PlantParams};
-use crate::pipe::FrictionMap;
-use crate::simd::F4;
+use crate::simd::{F4, LANES};
 
 /// Per-step reductions computed in the same pass as the update.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,114 +101,6 @@ struct Coefficients {
     dt: f64,
     /// Grid filter strength per step (the Nyquist mode's share removed), and `filter / 16`.
     filter: f64,
-}
-
-/// Per-node friction along a pipe whose friction varies.
-#[derive(Debug, Clone)]
-struct NodeFriction {
-    map: FrictionMap,
-    /// The map's intervals (index 0 before the first piece) with their coefficients.
-    intervals: Vec<Interval>,
-    /// World position of each node at zero displacement, m.
-    origin: Vec<f64>,
-    /// Map interval each node is in.
-    index: Vec<usize>,
-    /// The interval's bounds as displacements: the node stays in it while `lo <= u < hi`, m.
-    u_lo: Vec<f64>,
-    u_hi: Vec<f64>,
-    /// `eps_i c_d / a`, m/s.
-    g: Vec<f64>,
-    /// `1 / g_i` (0 where `g_i = 0`), s/m.
-    inv_g: Vec<f64>,
-    /// `eps_i c_d n_F,i / a`, m/s.
-    push: Vec<f64>,
-    /// n_F where it is the same in every interval (then `push = g n_F`, one array less to read).
-    uniform_n_f: Option<f64>,
-    /// First nodes of the chunks of [`ESCAPE_CHUNK`] nodes in which a node left its interval in
-    /// the last step: the first `escaped_count` entries (one slot per chunk, allocated once, so
-    /// the loops that fill it hold no call that would make the compiler spill registers).
-    escaped: Vec<usize>,
-    escaped_count: usize,
-}
-
-/// One interval of the map with the update's coefficients worked out once.
-#[derive(Debug, Clone, Copy)]
-struct Interval {
-    lo: f64,
-    hi: f64,
-    g: f64,
-    inv_g: f64,
-    push: f64,
-}
-
-impl NodeFriction {
-    fn new(map: FrictionMap, origin: Vec<f64>, c: &Coefficients, dry: f64) -> Self {
-        let n = origin.len();
-        let intervals = (0..=map.pieces.len())
-            .map(|j| {
-                let l = map.interval(j);
-                let g = l.eps * dry / c.a;
-                Interval {
-                    lo: l.lo,
-                    hi: l.hi,
-                    g,
-                    inv_g: if g > 0.0 { 1.0 / g } else { 0.0 },
-                    push: g * l.n_f,
-                }
-            })
-            .collect::<Vec<Interval>>();
-        let n_f = map.interval(0).n_f;
-        let uniform_n_f =
-            (0..intervals.len()).all(|j| map.interval(j).n_f.to_bits() == n_f.to_bits());
-        Self {
-            uniform_n_f: uniform_n_f.then_some(n_f),
-            map,
-            intervals,
-            origin,
-            index: vec![0; n],
-            u_lo: vec![0.0; n],
-            u_hi: vec![0.0; n],
-            g: vec![0.0; n],
-            inv_g: vec![0.0; n],
-            push: vec![0.0; n],
-            escaped: vec![0; n / ESCAPE_CHUNK + 1],
-            escaped_count: 0,
-        }
-    }
-
-    /// Sets node `i`'s coefficients for displacement `u`, searching the map from scratch.
-    fn place(&mut self, i: usize, u: f64) {
-        let j = self.map.locate(self.origin[i] + u).index;
-        self.set(i, j);
-    }
-
-    /// Moves node `i` to the interval holding displacement `u`, walking from its current one.
-    #[inline]
-    fn follow(&mut self, i: usize, u: f64) {
-        if u >= self.u_lo[i] && u < self.u_hi[i] {
-            return;
-        }
-        let x = self.origin[i] + u;
-        let mut j = self.index[i];
-        while x >= self.intervals[j].hi {
-            j += 1;
-        }
-        while x < self.intervals[j].lo {
-            j -= 1;
-        }
-        self.set(i, j);
-    }
-
-    #[inline]
-    fn set(&mut self, i: usize, j: usize) {
-        let l = self.intervals[j];
-        self.index[i] = j;
-        self.u_lo[i] = l.lo - self.origin[i];
-        self.u_hi[i] = l.hi - self.origin[i];
-        self.g[i] = l.g;
-        self.inv_g[i] = l.inv_g;
-        self.push[i] = l.push;
-    }
 }
 
 /// Displacement and velocity fields with the internal-step update.
@@ -281,11 +173,7 @@ impl Solver {
             let origin = (0..n)
                 .map(|i| params.pipe.start + params.boundary.node_position(i, disc.dx))
                 .collect();
-            let mut m = NodeFriction::new(friction_map, origin, &coef, params.friction.dry);
-            for i in 0..n {
-                m.place(i, 0.0);
-            }
-            m
+            NodeFriction::new(friction_map, origin, coef.a, params.friction.dry)
         });
         Self {
             coef,
@@ -381,9 +269,7 @@ impl Solver {
     /// Re-places every node in the friction map after its displacement was set from outside.
     pub fn refresh_friction(&mut self) {
         if let Some(m) = &mut self.map {
-            for (i, &u) in self.u.iter().enumerate() {
-                m.place(i, u);
-            }
+            m.place_all(&self.u);
         }
     }
 
@@ -479,15 +365,16 @@ impl Solver {
             (None, true) => self.nodes::<true, false>(),
             (None, false) => self.nodes::<false, false>(),
         };
-        // The nodes take the friction of where the step leaves them (after the filter's share).
-        match (self.coef.filter > 0.0, self.map.is_some()) {
-            (true, true) => n.sum_v = self.filter::<true>(),
-            (true, false) => n.sum_v = self.filter::<false>(),
-            (false, true) => self.scan_escapes(),
-            (false, false) => {}
+        let f = self.coef.filter;
+        if f > 0.0 {
+            n.sum_v = self.filter();
         }
-        if self.map.is_some() {
-            self.follow_map();
+        // The nodes take the friction of where the step leaves them (after the filter's share).
+        if let Some(m) = &mut self.map {
+            // `u` moved by `dt v` in the node pass and by `dt dv` in the filter's, where
+            // `|dv| <= f max|v|` (the flux difference is at most 16 max|v|), plus round-off
+            let reach = self.coef.dt * n.max_speed * (1.0 + f) * (1.0 + 1e-12);
+            m.follow_step(&self.u, reach);
         }
         // Σ v⁻ of this step is Σ v⁺ of the last one: the same numbers summed in the same lane order.
         let sum_v_old = std::mem::replace(&mut self.last_sum_v, n.sum_v);
@@ -618,32 +505,28 @@ impl Solver {
                 &mut acc,
             );
             changed = marks[0].to_bits();
-            let (per_node, uniform_n_f) = match map.as_deref().filter(|_| MAP) {
-                Some(m) => (
-                    PerNode {
-                        g: &m.g[1..1 + whole],
-                        push: &m.push[1..1 + whole],
-                        inv_g: &m.inv_g[1..1 + whole],
-                        n_f: m.uniform_n_f.unwrap_or(0.0),
-                    },
-                    m.uniform_n_f.is_some(),
-                ),
-                None => (PerNode::default(), true),
-            };
-            let blocks = Blocks {
-                u: &mut u[1..1 + whole],
-                v: &mut v[1..1 + whole],
-                t_here: &t[1..1 + whole],
-                t_before: &t[..whole],
-                flags: &mut flags[1..1 + whole],
-                marks: &mut marks[1..1 + whole],
-            };
             let any;
-            (acc, any) = if !MAP || uniform_n_f {
-                node_blocks::<FRICTION, MAP, false>(&k, acc, blocks, per_node)
-            } else {
-                node_blocks::<FRICTION, MAP, true>(&k, acc, blocks, per_node)
-            };
+            match map.as_deref().filter(|_| MAP) {
+                None => {
+                    let blocks = Blocks {
+                        u: &mut u[1..1 + whole],
+                        v: &mut v[1..1 + whole],
+                        t_here: &t[1..1 + whole],
+                        t_before: &t[..whole],
+                        flags: &mut flags[1..1 + whole],
+                        marks: &mut marks[1..1 + whole],
+                    };
+                    (acc, any) = node_blocks::<FRICTION, false, false, false>(
+                        &k,
+                        acc,
+                        blocks,
+                        PerNode::default(),
+                    );
+                }
+                Some(m) => {
+                    any = map_runs::<FRICTION>(&k, &mut acc, m, u, v, t, flags, marks, whole);
+                }
+            }
             if any {
                 changed |= 1;
             }
@@ -693,11 +576,9 @@ impl Solver {
     /// at the edges of stick phases are left alone, and the sum of the velocities (the momentum)
     /// is unchanged. The Nyquist mode loses the share `filter` per step; a mode of `theta`
     /// radians per cell `filter (1 - cos theta)^2 / 4`, so resolved waves are untouched to fourth
-    /// order. Returns the sum of the new velocities. `MAP`: also lists the chunks in which a node
-    /// left its piece of the pipe's map (see [`Self::scan_escapes`]), each right after its
-    /// displacements are written (still in the first-level cache).
+    /// order. Returns the sum of the new velocities.
     #[inline(never)]
-    fn filter<const MAP: bool>(&mut self) -> f64 {
+    fn filter(&mut self) -> f64 {
         let n = self.cells();
         if self.face_open.len() != n {
             self.refresh_faces(0..n);
@@ -731,16 +612,12 @@ impl Solver {
         let dt = F4::splat(self.coef.dt);
         let (u, v, flux) = (&mut self.u[..], &mut self.v[..], &self.flux[..]);
         let end = 1 + (n - 1) / LANES * LANES;
-        let (lo, hi, escaped): (&[f64], &[f64], &mut [usize]) =
-            match self.map.as_mut().filter(|_| MAP) {
-                Some(m) => (&m.u_lo, &m.u_hi, &mut m.escaped),
-                None => (&[], &[], &mut []),
-            };
+        let mut check = self.map.as_mut().and_then(|m| m.fused_check());
         let mut count = 0;
         let mut sum = F4::default();
-        let mut chunk = 1;
-        while chunk < end {
-            let stop = (chunk + ESCAPE_CHUNK).min(end);
+        let per_chunk = CHUNK_BLOCKS * LANES;
+        for (c, chunk) in (1..end).step_by(per_chunk).enumerate() {
+            let stop = (chunk + per_chunk).min(end);
             let blocks = flux[chunk..stop]
                 .chunks_exact(LANES)
                 .zip(flux[chunk - 1..stop - 1].chunks_exact(LANES))
@@ -753,15 +630,20 @@ impl Solver {
                 (F4::load(ub) + dt * dv).store(ub);
                 sum = sum + vn;
             }
-            // the chunk's displacements are still in the first-level cache
-            if MAP && left_piece(&u[chunk..stop], &lo[chunk..stop], &hi[chunk..stop]) {
-                escaped[count] = chunk;
-                count += 1;
+            // the eager check of the pipe map's edges while the chunk is in the first-level cache
+            if let Some(ch) = &mut check {
+                if chunk_left(
+                    &u[chunk..stop],
+                    &ch.u_lo[chunk..stop],
+                    &ch.u_hi[chunk..stop],
+                ) {
+                    ch.escaped[count] = c;
+                    count += 1;
+                }
             }
-            chunk = stop;
         }
-        if let Some(m) = self.map.as_mut().filter(|_| MAP) {
-            m.escaped_count = count;
+        if let Some(ch) = check {
+            *ch.count = count;
         }
         let i = end;
         let (kf, dtf) = (k.first(), dt.first());
@@ -776,46 +658,16 @@ impl Solver {
         sum.sum() + tail
     }
 
-    /// Lists the chunks of [`ESCAPE_CHUNK`] nodes (of the whole four-node blocks from node 1) in
-    /// which a node left its piece of the pipe's map. Without the grid filter this is a pass of its
-    /// own; with it, [`Self::filter`] does the same as it writes the displacements.
-    fn scan_escapes(&mut self) {
-        let n = self.cells();
-        let Some(m) = &mut self.map else { return };
-        let end = 1 + (n - 1) / LANES * LANES;
-        let mut count = 0;
-        for chunk in (1..end).step_by(ESCAPE_CHUNK) {
-            let stop = (chunk + ESCAPE_CHUNK).min(end);
-            let (lo, hi) = (&m.u_lo[chunk..stop], &m.u_hi[chunk..stop]);
-            if left_piece(&self.u[chunk..stop], lo, hi) {
-                m.escaped[count] = chunk;
-                count += 1;
-            }
-        }
-        m.escaped_count = count;
-    }
-
-    /// Moves the nodes that left their map interval to the interval they are in now: those in
-    /// the listed chunks, node 0 and the scalar tail (checked exactly, node by node).
-    fn follow_map(&mut self) {
-        let n = self.cells();
-        let Some(m) = &mut self.map else { return };
-        let end = 1 + (n - 1) / LANES * LANES;
-        for c in 0..m.escaped_count {
-            let chunk = m.escaped[c];
-            for i in chunk..(chunk + ESCAPE_CHUNK).min(end) {
-                m.follow(i, self.u[i]);
-            }
-        }
-        m.follow(0, self.u[0]);
-        for i in end..n {
-            m.follow(i, self.u[i]);
-        }
-    }
-
     /// Records node `i`'s switch (and, for a stop, whether only momentum put it at rest).
     fn record_transition(&mut self, i: usize) {
         let n = self.cells();
+        // Where a piece of the map has no dry friction (eps = 0) nothing holds a node: the
+        // kernel's select finds `|b| <= g` for a node with exactly zero velocity and force, but
+        // the node is not stuck (as the scalar select and a uniform pipe with eps = 0 say).
+        if self.stuck_flags[i] != 0.0 && self.map.as_ref().is_some_and(|m| m.g[i] == 0.0) {
+            self.stuck_flags[i] = 0.0;
+            return;
+        }
         let stuck = self.stuck_flags[i] != 0.0;
         self.stuck[i] = stuck;
         if stuck {
@@ -861,6 +713,7 @@ fn tension_scalar<const FIELD: bool>(
 }
 
 /// The update constants, broadcast to four lanes.
+#[derive(Clone, Copy)]
 struct NodeConstants {
     beta: F4,
     gamma_inv_dx: F4,
@@ -871,6 +724,16 @@ struct NodeConstants {
 }
 
 impl NodeConstants {
+    /// The same constants with the friction coefficients `g`, `push` (m/s) and `inv_g` (s/m).
+    fn with_friction(&self, g: f64, push: f64, inv_g: f64) -> Self {
+        Self {
+            g: F4::splat(g),
+            push: F4::splat(push),
+            inv_g: F4::splat(inv_g),
+            ..*self
+        }
+    }
+
     fn new(c: &Coefficients) -> Self {
         Self {
             beta: F4::splat(c.beta),
@@ -888,7 +751,7 @@ impl NodeConstants {
 /// coefficients `g`, `push`, `inv_g` of these nodes. Returns the new velocities and the stick
 /// flags (1.0 stuck, 0.0 sliding).
 #[inline(always)]
-fn node_simd<const FRICTION: bool, const MAP: bool>(
+fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
     k: &NodeConstants,
     v_old: F4,
     tension_difference: F4,
@@ -902,7 +765,11 @@ fn node_simd<const FRICTION: bool, const MAP: bool>(
     let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + push;
     let (v_new, s, stuck) = if FRICTION {
         let excess = b.abs() - g;
-        let v_new = excess.max(zero) | b.sign();
+        let speed = excess.max(zero);
+        if SPEED {
+            acc.max_speed = acc.max_speed.max(speed);
+        }
+        let v_new = speed | b.sign();
         // `b / g` clamped to [-1, 1] (the same bits as clamping `b inv_g` both ways)
         let q = (b.abs() * inv_g).min(one) | b.sign();
         let s = excess.select_le(zero, q, one | b.sign());
@@ -944,7 +811,7 @@ struct PerNode<'a> {
 /// accumulators and whether any node switched. A function of its own with local accumulators,
 /// so they stay in registers.
 #[inline(never)]
-fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool>(
+fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SPEED: bool>(
     k: &NodeConstants,
     mut acc: NodeLanes,
     blocks: Blocks,
@@ -987,7 +854,7 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool>(
         } else {
             (k.g, k.push, k.inv_g)
         };
-        let (v_new, stuck) = node_simd::<FRICTION, MAP>(
+        let (v_new, stuck) = node_simd::<FRICTION, MAP, SPEED>(
             k,
             F4::load(&v[r.clone()]),
             F4::load(&t_here[r.clone()]) - F4::load(&t_before[r.clone()]),
@@ -1006,6 +873,85 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool>(
         j += LANES;
     }
     (acc, any.any_nonzero())
+}
+
+/// Pass 2 over the whole blocks (nodes `1 ..= whole`) in a pipe whose friction varies, in runs of
+/// chunks ([`NodeFriction::chunk_interval`]): a run whose nodes all lie in one interval of the map
+/// goes through the uniform kernel with that interval's coefficients broadcast (its friction sums
+/// follow from `sum s`, `sum |v|` and `sum v` as in a uniform pipe); the others read each node's
+/// coefficients. Every node gets the same bits either way. Keeps the fastest speed while the map's
+/// check needs it. Returns whether any node switched.
+#[allow(clippy::too_many_arguments)]
+fn map_runs<const FRICTION: bool>(
+    k: &NodeConstants,
+    acc: &mut NodeLanes,
+    m: &NodeFriction,
+    u: &mut [f64],
+    v: &mut [f64],
+    t: &[f64],
+    flags: &mut [f64],
+    marks: &mut [f64],
+    whole: usize,
+) -> bool {
+    let chunks = m.chunk_interval();
+    let per_chunk = LANES * CHUNK_BLOCKS;
+    // the fastest speed costs a reduction: only while the map's check needs it
+    let speed = m.needs_reach();
+    let mut any = false;
+    let mut c = 0;
+    while c < chunks.len() {
+        let j = chunks[c];
+        let mut e = c + 1;
+        while e < chunks.len() && chunks[e] == j {
+            e += 1;
+        }
+        let r = 1 + c * per_chunk..1 + (e * per_chunk).min(whole);
+        let blocks = Blocks {
+            u: &mut u[r.clone()],
+            v: &mut v[r.clone()],
+            t_here: &t[r.clone()],
+            t_before: &t[r.start - 1..r.end - 1],
+            flags: &mut flags[r.clone()],
+            marks: &mut marks[r.clone()],
+        };
+        let switched;
+        if j == MIXED {
+            let per_node = PerNode {
+                g: &m.g[r.clone()],
+                push: &m.push[r.clone()],
+                inv_g: &m.inv_g[r.clone()],
+                n_f: m.uniform_n_f.unwrap_or(0.0),
+            };
+            (*acc, switched) = match (m.uniform_n_f.is_some(), speed) {
+                (true, true) => {
+                    node_blocks::<FRICTION, true, false, true>(k, *acc, blocks, per_node)
+                }
+                (true, false) => {
+                    node_blocks::<FRICTION, true, false, false>(k, *acc, blocks, per_node)
+                }
+                (false, true) => {
+                    node_blocks::<FRICTION, true, true, true>(k, *acc, blocks, per_node)
+                }
+                (false, false) => {
+                    node_blocks::<FRICTION, true, true, false>(k, *acc, blocks, per_node)
+                }
+            };
+        } else {
+            let (g, push, inv_g) = m.interval_coefficients(j as usize);
+            let kj = k.with_friction(g, push, inv_g);
+            let run;
+            let none = NodeLanes::default();
+            (run, switched) = if speed {
+                node_blocks::<FRICTION, false, false, true>(&kj, none, blocks, PerNode::default())
+            } else {
+                node_blocks::<FRICTION, false, false, false>(&kj, none, blocks, PerNode::default())
+            };
+            acc.add_run(&run, g, push, r.len());
+        }
+        any |= switched;
+        c = e;
+    }
+    any
 }
 
 /// One node, the same operations as one lane of [`node_simd`]; returns the change mark.
@@ -1031,6 +977,7 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
     acc.add_scalar(v_new, v_old, s);
     if MAP {
         acc.add_map_scalar(v_new, s, g, push);
+        acc.max_speed = acc.max_speed.max(lane0(v_new.abs()));
     }
     let change = f64::from_bits(stuck.to_bits() ^ flag.to_bits());
     *flag = stuck;
@@ -1038,28 +985,6 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
     *u += k.dt.first() * v_new;
     change
 }
-
-/// True if a node of the chunk `u` lies outside its interval `[lo, hi)` (whole blocks of
-/// [`LANES`] nodes; the blocks' results are ORed and tested once per chunk).
-#[inline(always)]
-fn left_piece(u: &[f64], lo: &[f64], hi: &[f64]) -> bool {
-    let mut out = F4::default();
-    let blocks = u
-        .chunks_exact(LANES)
-        .zip(lo.chunks_exact(LANES))
-        .zip(hi.chunks_exact(LANES));
-    for ((x, l), h) in blocks {
-        out = out | F4::load(x).outside(F4::load(l), F4::load(h));
-    }
-    out.any_set()
-}
-
-/// Lanes of the reductions: independent accumulators so the loops vectorise.
-const LANES: usize = 4;
-
-/// Nodes per chunk of the check against the pipe map's edges (a multiple of [`LANES`]): the
-/// check ORs the blocks of a chunk and tests once per chunk.
-const ESCAPE_CHUNK: usize = 16 * LANES;
 
 /// `x` in lane 0, zeros elsewhere (adding it changes lane 0 only, exactly: `y + 0.0 = y`).
 #[inline(always)]
@@ -1125,7 +1050,7 @@ impl TensionLanes {
 }
 
 /// Accumulators of pass 2, four lanes each. Scalar nodes add to lane 0.
-#[derive(Default)]
+#[derive(Default, Clone, Copy)]
 struct NodeLanes {
     sum_v: F4,
     sum_s: F4,
@@ -1137,6 +1062,11 @@ struct NodeLanes {
     sum_f: F4,
     /// per-node friction: sum of `(g s - push) v_new`
     sum_fv: F4,
+    /// per-node friction: the largest `|v_new|`
+    max_speed: F4,
+    /// per-node friction, the runs of one interval: sum of `g s - push` and `(g s - push) v_new`
+    run_f: f64,
+    run_fv: f64,
 }
 
 struct NodeSums {
@@ -1145,6 +1075,8 @@ struct NodeSums {
     friction_force: f64,
     stuck: f64,
     dissipation: f64,
+    /// With per-node friction, the largest `|v_new|`, m/s.
+    max_speed: f64,
 }
 
 impl NodeLanes {
@@ -1165,6 +1097,18 @@ impl NodeLanes {
         let f = g * s - push;
         self.sum_f = self.sum_f + f;
         self.sum_fv = self.sum_fv + f * v_new;
+    }
+
+    /// Adds a run of `count` nodes of one interval with coefficients `g`, `push`, summed as in a
+    /// uniform pipe: `sum (g s - push) = g sum s - push count` and, as `s v_new = |v_new|`,
+    /// `sum (g s - push) v_new = g sum |v_new| - push sum v_new`.
+    fn add_run(&mut self, run: &NodeLanes, g: f64, push: f64, count: usize) {
+        self.sum_v = self.sum_v + run.sum_v;
+        self.sum_s = self.sum_s + run.sum_s;
+        self.sum_vm2 = self.sum_vm2 + run.sum_vm2;
+        self.max_speed = self.max_speed.max(run.max_speed);
+        self.run_f += g * run.sum_s.sum() - push * count as f64;
+        self.run_fv += g * run.sum_abs_v.sum() - push * run.sum_v.sum();
     }
 
     #[inline(always)]
@@ -1192,7 +1136,10 @@ impl NodeLanes {
         let sum_s = self.sum_s.sum();
         let viscous = 0.25 * c.viscous * self.sum_vm2.sum();
         let (coulomb, friction_force) = if map {
-            (c.a * self.sum_fv.sum(), c.a * self.sum_f.sum())
+            (
+                c.a * (self.sum_fv.sum() + self.run_fv),
+                c.a * (self.sum_f.sum() + self.run_f),
+            )
         } else {
             (
                 c.band * (self.sum_abs_v.sum() - c.n_f * sum_v),
@@ -1205,6 +1152,7 @@ impl NodeLanes {
             friction_force,
             stuck: stuck as f64,
             dissipation: viscous + coulomb,
+            max_speed: self.max_speed.max_lane(),
         }
     }
 }
@@ -1213,21 +1161,82 @@ impl NodeLanes {
 mod tests {
     use super::*;
 
-    /// The paper's plant on 256 cells in a pipe whose eps (and with `n_f_std > 0` n_F) varies.
-    fn textured(n_f_std: f64) -> Solver {
+    /// The paper's plant on `cells` cells in a pipe with the `[pipe]` section `pipe`.
+    fn piped(pipe: &str, cells: usize) -> Solver {
         let text = std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../scenarios/paper.toml"
         ))
         .unwrap()
-            + &format!(
-                "\n[pipe]\n[[pipe.features]]\nkind = \"texture\"\nfrom = -1.0\nto = 3.0\n\
-                 eps_std = 0.1\nn_f_std = {n_f_std:?}\ncorrelation = 0.002\nseed = 4\n"
-            );
+            + pipe;
         let s = crate::Scenario::from_toml(&text, "<test>", &Default::default()).unwrap();
         let mut p = s.plant.clone();
-        p.numerics.cells = 256;
+        p.numerics.cells = cells;
         Solver::new(&p, &p.discretisation().unwrap())
+    }
+
+    /// The paper's plant on 256 cells in a pipe whose eps (and with `n_f_std > 0` n_F) varies.
+    fn textured(n_f_std: f64) -> Solver {
+        piped(
+            &format!(
+                "\n[pipe]\n[[pipe.features]]\nkind = \"texture\"\nfrom = -1.0\nto = 3.0\n\
+                 eps_std = 0.1\nn_f_std = {n_f_std:?}\ncorrelation = 0.002\nseed = 4\n"
+            ),
+            256,
+        )
+    }
+
+    #[test]
+    fn runs_of_one_interval_give_the_bits_of_per_node_coefficients() {
+        // patches wide and narrow (one of n_F too), so that the body has long runs of one
+        // interval and chunks that straddle an edge
+        let pipe = "\n[pipe]\n\
+            [[pipe.features]]\nkind = \"patch\"\nfrom = 0.3\nto = 0.6\neps = 0.3\n\
+            [[pipe.features]]\nkind = \"patch\"\nfrom = 0.71\nto = 0.7105\neps = 0.02\n\
+            [[pipe.features]]\nkind = \"patch\"\nfrom = 0.75\nto = 1.2\nn_f = 0.0\n";
+        let mut runs = piped(pipe, 1024);
+        runs.set_wave_number(2.0 * std::f64::consts::PI, 1.0 / 1024.0);
+        let mut per_node = runs.clone();
+        per_node.map.as_mut().unwrap().broadcast = false;
+        per_node.refresh_friction();
+        let chunks = |s: &Solver| {
+            let c = s.map.as_ref().unwrap().chunk_interval();
+            (c.iter().filter(|&&j| j != MIXED).count(), c.len())
+        };
+        assert_eq!(chunks(&per_node).0, 0);
+        let (mut transitions, mut backward) = (0, 0);
+        for n in 0..20_000 {
+            let (a, b) = ((n as f64 * 1e-3).sin() * 0.5, (n as f64 * 1e-3).cos() * 0.5);
+            let (x, y) = (runs.step(a, b), per_node.step(a, b));
+            backward += runs.v.iter().filter(|&&v| v < 0.0).count();
+            assert_eq!(runs.u, per_node.u, "step {n}");
+            assert_eq!(runs.v, per_node.v, "step {n}");
+            assert_eq!(runs.stuck, per_node.stuck, "step {n}");
+            // the sums are summed in another order: equal to round-off of the band's scale,
+            // the Coulomb force sum a g_i (N/m summed over the nodes) and its power
+            let band: f64 = runs.map.as_ref().unwrap().g.iter().sum::<f64>() * runs.coef.a;
+            let speed = runs.v.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
+            let close = |p: f64, q: f64, scale: f64| (p - q).abs() <= 1e-12 * scale;
+            assert!(
+                close(x.friction_force, y.friction_force, band),
+                "step {n}: {x:?} {y:?}"
+            );
+            assert!(close(
+                x.dissipation,
+                y.dissipation,
+                band * speed + x.dissipation.abs()
+            ));
+            assert!(close(x.sum_s, y.sum_s, runs.cells() as f64));
+            transitions += runs.transitions.len();
+        }
+        let (uniform, all) = chunks(&runs);
+        assert!(
+            uniform > all / 2 && uniform < all,
+            "{uniform} of {all} chunks in one interval"
+        );
+        assert!(transitions > 100, "{transitions} stick/slip switches");
+        // nodes slid both ways (so `sum |v|` and `sum v` differ)
+        assert!(backward > 1000, "{backward} node steps backwards");
     }
 
     #[test]

@@ -197,3 +197,24 @@ fn a_state_restored_at_every_step_continues_bit_for_bit_in_a_fine_texture() {
     // not vacuous: nodes kept crossing piece edges
     assert!(moves > 1000, "only {moves} changes of a node's friction");
 }
+
+#[test]
+fn nothing_sticks_where_the_pipe_has_no_dry_friction() {
+    // a body at rest (no muscle force) on a piece of pipe with eps = 0: every node has zero
+    // velocity and zero force, and nothing holds it, as in a pipe with eps = 0 everywhere
+    let frictionless = run(&custom(0.0, 0.0, 4.0 * TAU, 1.0, 0.25, 128, 6.0, ""));
+    let piece = run(&custom(
+        0.1,
+        0.0,
+        4.0 * TAU,
+        1.0,
+        0.25,
+        128,
+        6.0,
+        "[pipe]\n[[pipe.features]]\nkind = \"patch\"\nfrom = -1.0\nto = 1.0\neps = 0.0\n",
+    ));
+    assert_eq!(frictionless.stuck_fraction, 0.0);
+    assert_eq!(piece.stuck_fraction, 0.0);
+    assert_eq!(piece.events.count, 0);
+    assert_eq!(frictionless.velocity, piece.velocity);
+}
