@@ -14,15 +14,19 @@
 //!   node's distance covered since the run (or the last placement) began;
 //! - each block of [`LANES`] nodes has a `due` value: `travel` plus the block's smallest distance
 //!   to an edge (rounded down) when it was last examined. No node of the block can have left its
-//!   piece while `travel < due`; a block that falls due is examined node by node and gets a new
-//!   `due`.
+//!   piece while `travel < due`; a block that falls due is examined and gets a new `due`.
 //!
 //! In a pipe with a few patches blocks fall due only near the patch edges. In a fine texture (or a
 //! ramp, held constant every millimetre) a block falls due every few steps, and examining it costs
-//! more than checking every node: when more than one block in [`EXAMINE_COST`] falls due per step
-//! over a window of [`WINDOW`] steps, the check turns eager for [`EAGER_STEPS`] steps (every node
-//! against its edges, in the grid filter's pass while the displacements are in the first-level
-//! cache), then tries the lazy check again with every block due. Both give the same intervals.
+//! more than checking every node: when the examinations of a window of [`WINDOW`] steps (each
+//! [`EXAMINE_COST`] block checks) and the lazy check's own cost ([`LAZY_COST`] block checks a
+//! step) come to more than checking every block, the check turns eager for [`EAGER_STEPS`] steps
+//! (every node against its edges, in the grid filter's pass while the displacements are in the
+//! first-level cache), then tries the lazy check again with every block due. Both give the same
+//! intervals.
+//!
+//! The kernel runs the chunks of [`CHUNK_BLOCKS`] blocks whose nodes all lie in one interval with
+//! that interval's coefficients broadcast, as in a uniform pipe ([`NodeFriction::chunk_interval`]).
 
 use crate::pipe::FrictionMap;
 use crate::simd::{F4, LANES};
@@ -30,6 +34,10 @@ use crate::simd::{F4, LANES};
 /// One lazy examination of a block costs about this many eager block checks (measured with the
 /// plant's benchmark in a 1 mm texture and in patches, N = 4096).
 pub const EXAMINE_COST: usize = 16;
+
+/// The lazy check's own cost per step (the bound's arithmetic, the fastest speed the kernel then
+/// keeps) is about this many eager block checks: on a small body the eager check is cheaper.
+pub const LAZY_COST: usize = 64;
 
 /// Steps over which the lazy check's examinations are counted.
 pub const WINDOW: u32 = 64;
@@ -207,11 +215,16 @@ impl NodeFriction {
     }
 
     /// Moves node `i` to the interval holding displacement `u`, walking from its current one.
-    #[inline]
+    #[inline(always)]
     fn follow(&mut self, i: usize, u: f64) {
-        if u >= self.u_lo[i] && u < self.u_hi[i] {
-            return;
+        if !(u >= self.u_lo[i] && u < self.u_hi[i]) {
+            self.relocate(i, u);
         }
+    }
+
+    /// [`Self::follow`] for a node outside its interval's edges (or in their rounding band).
+    #[inline(never)]
+    fn relocate(&mut self, i: usize, u: f64) {
         let x = self.origin[i] + u;
         let mut j = self.index[i];
         let last = self.intervals.len() - 1;
@@ -255,9 +268,9 @@ impl NodeFriction {
     }
 
     /// After a step that moved no node by more than `reach` plus the round-off of adding it to
-    /// `u` (m; needed only while [`Self::needs_reach`]): moves the nodes that left their interval to the interval they are in now, node 0
-    /// and the nodes after the whole blocks at every step, the blocks when they fall due.
-    /// Returns the number of blocks examined.
+    /// `u` (m; needed only while [`Self::needs_reach`]): moves the nodes that left their interval
+    /// to the interval they are in now (node 0 and the nodes after the whole blocks at every step,
+    /// the blocks as the check says). Returns the number of blocks the lazy check examined.
     pub fn follow_step(&mut self, u: &[f64], reach: f64) -> usize {
         let (first, blocks) = whole_blocks(u.len());
         self.follow(0, u[0]);
@@ -266,16 +279,19 @@ impl NodeFriction {
         }
         let examined = match self.check {
             Check::Lazy { steps, examined } => {
-                // Each of the step's two additions to `u` is off by at most 2^-53 of its result.
-                let bound =
-                    (reach + (self.u_bound + reach) * f64::EPSILON + f64::MIN_POSITIVE).next_up();
+                // Each of the step's two additions to `u` is off by at most 2^-53 of its result
+                // (twice that here, for the rounding of this line itself).
+                let round_off = (self.u_bound + reach) * (2.0 * f64::EPSILON) + f64::MIN_POSITIVE;
+                let bound = (reach + round_off).next_up();
                 self.travel = (self.travel + bound).next_up();
                 self.u_bound = (self.u_bound + bound).next_up();
                 let now = self.follow_due(u);
                 let (steps, examined) = (steps + 1, examined + now);
                 self.check = if steps < WINDOW {
                     Check::Lazy { steps, examined }
-                } else if examined * EXAMINE_COST > blocks * WINDOW as usize {
+                } else if examined * EXAMINE_COST + LAZY_COST * WINDOW as usize
+                    > blocks * WINDOW as usize
+                {
                     Check::Eager { steps: EAGER_STEPS }
                 } else {
                     Check::Lazy {
@@ -359,8 +375,13 @@ impl NodeFriction {
         self.escaped_listed = false;
         for e in 0..self.escaped_count {
             let start = first + self.escaped[e] * per_chunk;
-            for (i, &x) in u.iter().enumerate().take(end).skip(start).take(per_chunk) {
-                self.follow(i, x);
+            for block in (start..(start + per_chunk).min(end)).step_by(LANES) {
+                let r = block..block + LANES;
+                if chunk_left(&u[r.clone()], &self.u_lo[r.clone()], &self.u_hi[r.clone()]) {
+                    for (i, &x) in u.iter().enumerate().skip(block).take(LANES) {
+                        self.follow(i, x);
+                    }
+                }
             }
         }
     }
@@ -458,7 +479,7 @@ mod tests {
         }
     }
 
-    /// 64 nodes 1 cm apart from 0 m; patches at [0.1, 0.3) and two ulps wide at 0.3 m.
+    /// 1024 nodes 1 mm apart from 0 m; patches at [0.1, 0.3) and two ulps wide at 0.3 m.
     fn patches() -> NodeFriction {
         let pipe = Pipe {
             features: vec![
@@ -469,7 +490,7 @@ mod tests {
         };
         let map = pipe.compile(0.1, 0.5);
         assert_eq!(map.pieces.len(), 3);
-        let origin = (0..64).map(|i| i as f64 * 0.01).collect();
+        let origin = (0..1024).map(|i| i as f64 * 1e-3).collect();
         NodeFriction::new(map, origin, 2.0, 1.0)
     }
 
@@ -485,7 +506,7 @@ mod tests {
     fn inward_edges_agree_with_locate_at_every_rounding() {
         let mut m = patches();
         // displacements within a few ulps of every edge, on both sides
-        for i in 0..64 {
+        for i in 0..m.origin.len() {
             for j in 1..m.intervals.len() {
                 let edge = m.intervals[j].lo - m.origin[i];
                 let mut x = edge;
@@ -511,7 +532,7 @@ mod tests {
         // the nodes move by up to the bound each step, 0.1 m one way and back, across the edges at
         // 0.1 and 0.3 m; the lazy check must agree with locate after every step
         let mut m = patches();
-        let n = 64;
+        let n = 1024;
         let mut u = vec![0.0; n];
         let speed = 2e-4;
         let mut examined = 0;
@@ -523,6 +544,7 @@ mod tests {
             }
             examined += m.follow_step(&u, speed);
             assert_eq!(m.index, located(&m, &u), "step {step}");
+            assert!(m.needs_reach(), "step {step}: the check turned eager");
         }
         // and it is lazy: far fewer block examinations than blocks times steps
         let blocks = whole_blocks(n).1;
@@ -536,7 +558,7 @@ mod tests {
 
     #[test]
     fn a_fine_map_turns_the_check_eager_and_back_and_both_agree_with_locate() {
-        // a ramp held constant every millimetre under nodes 1 cm apart: each node is within half
+        // a ramp held constant every millimetre under nodes 1 mm apart: each node is within half
         // a millimetre of an edge, so blocks fall due every few steps
         let pipe = Pipe {
             features: vec![Feature::Ramp {
@@ -547,9 +569,9 @@ mod tests {
             }],
             ..Default::default()
         };
-        let origin = (0..64).map(|i| i as f64 * 0.01).collect();
+        let origin = (0..1024).map(|i| i as f64 * 1e-3).collect();
         let mut m = NodeFriction::new(pipe.compile(0.1, 0.5), origin, 2.0, 1.0);
-        let mut u = vec![0.0; 64];
+        let mut u = vec![0.0; 1024];
         let (mut lazy, mut eager, mut switches) = (0, 0, 0);
         let speed = 2e-4;
         for step in 0..9000 {
@@ -577,9 +599,9 @@ mod tests {
         // the check relies on the reported bound: a node that jumps further than it is missed
         // (which is why a state set from outside places every node from scratch)
         let mut m = patches();
-        let mut u = vec![0.0; 64];
+        let mut u = vec![0.0; 1024];
         m.follow_step(&u, 0.0);
-        u[20] += 0.15; // node 20 at 0.2 m jumps to 0.35 m
+        u[20] += 0.15; // node 20 at 0.02 m jumps over the edge at 0.1 m to 0.17 m
         m.follow_step(&u, 1e-6);
         assert_ne!(m.index, located(&m, &u));
         m.place_all(&u);
