@@ -468,16 +468,7 @@ fn all_below(x: f64, due: &[f64]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipe::{Feature, Pipe};
-
-    fn patch(from: f64, to: f64, eps: f64) -> Feature {
-        Feature::Patch {
-            from,
-            to,
-            eps: Some(eps),
-            n_f: None,
-        }
-    }
+    use crate::pipe::{patch, Feature, Pipe};
 
     /// 1024 nodes 1 mm apart from 0 m; patches at [0.1, 0.3) and two ulps wide at 0.3 m.
     fn patches() -> NodeFriction {

@@ -487,18 +487,20 @@ impl FrictionMap {
     }
 }
 
+/// A patch of `eps` on `[from, to)` (for the tests of this crate).
+#[cfg(test)]
+pub(crate) fn patch(from: f64, to: f64, eps: f64) -> Feature {
+    Feature::Patch {
+        from,
+        to,
+        eps: Some(eps),
+        n_f: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn patch(from: f64, to: f64, eps: f64) -> Feature {
-        Feature::Patch {
-            from,
-            to,
-            eps: Some(eps),
-            n_f: None,
-        }
-    }
 
     #[test]
     fn patches_are_exact_and_later_features_win() {
