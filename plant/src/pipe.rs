@@ -320,7 +320,9 @@ impl Pipe {
         };
         let mut pieces: Vec<Piece> = Vec::with_capacity(edges.len());
         for w in edges.windows(2) {
-            let (e, n) = value_at(0.5 * (w[0] + w[1]));
+            // the midpoint of an interval one ulp wide rounds onto its end: take its start then
+            let mid = 0.5 * (w[0] + w[1]);
+            let (e, n) = value_at(if mid < w[1] { mid } else { w[0] });
             match pieces.last() {
                 Some(last) if last.eps == e && last.n_f == n => {}
                 _ => pieces.push(Piece {
@@ -501,6 +503,20 @@ pub(crate) fn patch(from: f64, to: f64, eps: f64) -> Feature {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_patch_one_ulp_wide_is_kept() {
+        let (from, to) = (0.3, 0.3f64.next_up());
+        let pipe = Pipe {
+            features: vec![patch(from, to, 0.7)],
+            ..Default::default()
+        };
+        pipe.validate().unwrap();
+        let m = pipe.compile(0.1, 0.5);
+        assert_eq!(m.at(from.next_down()), (0.1, 0.5));
+        assert_eq!(m.at(from), (0.7, 0.5));
+        assert_eq!(m.at(to), (0.1, 0.5));
+    }
 
     #[test]
     fn patches_are_exact_and_later_features_win() {
