@@ -65,10 +65,10 @@ impl F4 {
         F4(self.0 & f64x4::splat(-0.0))
     }
 
-    /// Lane-wise `1.0` where `self <= o`, else `0.0`.
+    /// Bit `l` set where lane `l` has `self <= o` (clear where either is NaN).
     #[inline(always)]
-    pub fn le_as_one(self, o: Self) -> Self {
-        F4(self.0.cmp_le(o.0) & f64x4::ONE)
+    pub fn le_bits(self, o: Self) -> u8 {
+        self.0.cmp_le(o.0).move_mask() as u8
     }
 
     /// Lane-wise `if self <= o { then } else { other }`.
@@ -198,7 +198,12 @@ mod tests {
         let a = F4(f64x4::new([1.0, -2.0, 0.0, -0.0]));
         let z = F4::splat(0.0);
         assert_eq!(a.max(z).lanes(), [1.0, 0.0, 0.0, 0.0]);
-        assert_eq!(a.le_as_one(z).lanes(), [0.0, 1.0, 1.0, 1.0]);
+        assert_eq!(a.le_bits(z), 0b1110);
+        assert_eq!(
+            F4(f64x4::new([f64::NAN, 1.0, -1.0, 2.0])).le_bits(z),
+            0b0100
+        );
+        assert_eq!(F4(f64x4::new([-1.0, 1.0, 1.0, 1.0])).le_bits(z), 0b0001);
         assert_eq!((F4::splat(1.0) | a.sign()).lanes(), [1.0, -1.0, 1.0, -1.0]);
         assert_eq!(
             a.select_le(z, F4::splat(7.0), F4::splat(9.0)).lanes(),

@@ -118,12 +118,13 @@ pub struct Solver {
     stuck: Vec<bool>,
     /// Σ v⁺ of the last step in the kernel's lane order (Σ v⁻ of the next one), m/s.
     last_sum_v: f64,
-    /// 1.0 where stuck, 0.0 where sliding (the kernel's own copy of `stuck`).
-    stuck_flags: Vec<f64>,
+    /// `stuck` of the kernel's whole blocks packed: bit `l` of entry `b` is node `1 + 4 b + l`
+    /// (the kernel reads one byte per block instead of four flags).
+    stuck_bits: Vec<u8>,
     /// Number of stuck nodes, kept at every switch (so the kernel carries one reduction less).
     stuck_count: usize,
-    /// Per node: 1.0 if it switched between stick and slip in the last step.
-    change_marks: Vec<f64>,
+    /// Blocks of the last step whose stick mask differs from `stuck_bits`, with the new mask.
+    switched: Vec<(u32, u8)>,
     /// True while `field` may be non-zero (general actuation).
     field_active: bool,
     /// Muscle-force field `g_i` at half nodes held over the step, N.
@@ -182,9 +183,9 @@ impl Solver {
             u: vec![0.0; n],
             v: vec![0.0; n],
             stuck: vec![false; n],
-            stuck_flags: vec![0.0; n],
+            stuck_bits: vec![0; (n - 1) / LANES],
             stuck_count: 0,
-            change_marks: vec![0.0; n],
+            switched: Vec::new(),
             last_sum_v: 0.0,
             field_active: false,
             field: vec![0.0; n],
@@ -223,8 +224,12 @@ impl Solver {
     pub fn set_stuck(&mut self, stuck: &[bool]) {
         self.stuck.clone_from_slice(stuck);
         self.stuck_count = stuck.iter().filter(|&&s| s).count();
-        for (f, &s) in self.stuck_flags.iter_mut().zip(stuck) {
-            *f = if s { 1.0 } else { 0.0 };
+        for (b, bits) in self.stuck_bits.iter_mut().enumerate() {
+            let lanes = &stuck[1 + b * LANES..1 + (b + 1) * LANES];
+            *bits = lanes
+                .iter()
+                .enumerate()
+                .fold(0, |m, (l, &s)| m | (u8::from(s) << l));
         }
         self.refresh_faces(0..self.cells());
     }
@@ -258,10 +263,7 @@ impl Solver {
             };
             // the stencil i-1 ..= i+2 must be inside the body, and no node of i-2 ..= i+3 stuck
             let inside = (-1..=2).all(|o| self.node_at(face, o).is_some());
-            let free = (-2..=3).all(|o| {
-                self.node_at(face, o)
-                    .is_none_or(|j| self.stuck_flags[j] == 0.0)
-            });
+            let free = (-2..=3).all(|o| self.node_at(face, o).is_none_or(|j| !self.stuck[j]));
             self.face_open[face] = if inside && free { 1.0 } else { 0.0 };
         }
     }
@@ -480,14 +482,16 @@ impl Solver {
         let n = self.cells();
         let k = NodeConstants::new(&c);
         let mut acc = NodeLanes::default();
-        let mut changed;
         let whole = (n - 1) / LANES * LANES;
+        // the nodes outside the whole blocks (node 0 and the tail) that switched, new flag
+        let mut lone = [(0, false); LANES];
+        let mut lone_count = 0;
+        self.switched.clear();
         {
             let u = &mut self.u[..];
             let v = &mut self.v[..];
             let t = &self.tension[..];
-            let flags = &mut self.stuck_flags[..];
-            let marks = &mut self.change_marks[..];
+            let stuck = &self.stuck[..];
             let map = if MAP { self.map.as_mut() } else { None };
             let scalar_coefficients = |map: &Option<&mut NodeFriction>, i: usize| match map {
                 Some(m) => (m.g[i], m.push[i], m.inv_g[i]),
@@ -495,75 +499,70 @@ impl Solver {
             };
             // node 0 wraps around to the last half node (zero on a free body)
             let cf = scalar_coefficients(&map, 0);
-            marks[0] = node_scalar::<FRICTION, MAP>(
+            let now = node_scalar::<FRICTION, MAP>(
                 &k,
                 &mut u[0],
                 &mut v[0],
                 t[0] - t[n - 1],
-                &mut flags[0],
                 cf,
                 &mut acc,
             );
-            changed = marks[0].to_bits();
-            let any;
+            if now != stuck[0] {
+                lone[lone_count] = (0, now);
+                lone_count += 1;
+            }
+            let blocks = Blocks {
+                u: &mut u[1..1 + whole],
+                v: &mut v[1..1 + whole],
+                t_here: &t[1..1 + whole],
+                t_before: &t[..whole],
+                stuck: &self.stuck_bits,
+                first: 0,
+            };
             match map.as_deref().filter(|_| MAP) {
                 None => {
-                    let blocks = Blocks {
-                        u: &mut u[1..1 + whole],
-                        v: &mut v[1..1 + whole],
-                        t_here: &t[1..1 + whole],
-                        t_before: &t[..whole],
-                        flags: &mut flags[1..1 + whole],
-                        marks: &mut marks[1..1 + whole],
-                    };
-                    (acc, any) = node_blocks::<FRICTION, false, false, false>(
+                    acc = node_blocks::<FRICTION, false, false, false>(
                         &k,
                         acc,
                         blocks,
                         PerNode::default(),
+                        &mut self.switched,
                     );
                 }
-                Some(m) => {
-                    any = map_runs::<FRICTION>(&k, &mut acc, m, u, v, t, flags, marks, whole);
-                }
-            }
-            if any {
-                changed |= 1;
+                Some(m) => map_runs::<FRICTION>(&k, &mut acc, m, blocks, &mut self.switched),
             }
             for i in 1 + whole..n {
                 let cf = scalar_coefficients(&map, i);
-                marks[i] = node_scalar::<FRICTION, MAP>(
+                let now = node_scalar::<FRICTION, MAP>(
                     &k,
                     &mut u[i],
                     &mut v[i],
                     t[i] - t[i - 1],
-                    &mut flags[i],
                     cf,
                     &mut acc,
                 );
-                changed |= marks[i].to_bits();
+                if now != stuck[i] {
+                    lone[lone_count] = (i, now);
+                    lone_count += 1;
+                }
             }
         }
-        if changed != 0 {
-            if self.change_marks[0].to_bits() != 0 {
-                self.record_transition(0);
-            }
-            let mut b = 1;
-            while b < 1 + whole {
-                if F4::load(&self.change_marks[b..b + LANES]).any_nonzero() {
-                    for i in b..b + LANES {
-                        if self.change_marks[i].to_bits() != 0 {
-                            self.record_transition(i);
-                        }
-                    }
-                }
-                b += LANES;
-            }
-            for i in 1 + whole..n {
-                if self.change_marks[i].to_bits() != 0 {
-                    self.record_transition(i);
+        // the switches in node order: node 0, the blocks, the tail
+        let tail = usize::from(lone_count > 0 && lone[0].0 == 0);
+        if tail == 1 {
+            self.record_transition(0, lone[0].1);
+        }
+        for s in 0..self.switched.len() {
+            let (b, now) = self.switched[s];
+            let changed = now ^ self.stuck_bits[b as usize];
+            for l in 0..LANES {
+                if changed >> l & 1 != 0 {
+                    self.record_transition(1 + b as usize * LANES + l, now >> l & 1 != 0);
                 }
             }
+        }
+        for &(i, now) in &lone[tail..lone_count] {
+            self.record_transition(i, now);
         }
         acc.finish(&c, n, MAP, self.stuck_count)
     }
@@ -658,18 +657,24 @@ impl Solver {
         sum.sum() + tail
     }
 
-    /// Records node `i`'s switch (and, for a stop, whether only momentum put it at rest).
-    fn record_transition(&mut self, i: usize) {
+    /// Records node `i`'s switch to `stuck` (and, for a stop, whether only momentum put it at
+    /// rest).
+    fn record_transition(&mut self, i: usize, stuck: bool) {
         let n = self.cells();
         // Where a piece of the map has no dry friction (eps = 0) nothing holds a node: the
         // kernel's select finds `|b| <= g` for a node with exactly zero velocity and force, but
         // the node is not stuck (as the scalar select and a uniform pipe with eps = 0 say).
-        if self.stuck_flags[i] != 0.0 && self.map.as_ref().is_some_and(|m| m.g[i] == 0.0) {
-            self.stuck_flags[i] = 0.0;
+        if stuck && self.map.as_ref().is_some_and(|m| m.g[i] == 0.0) {
             return;
         }
-        let stuck = self.stuck_flags[i] != 0.0;
         self.stuck[i] = stuck;
+        if let Some(bits) = i
+            .checked_sub(1)
+            .and_then(|j| self.stuck_bits.get_mut(j / LANES))
+        {
+            let bit = 1 << ((i - 1) % LANES);
+            *bits = if stuck { *bits | bit } else { *bits & !bit };
+        }
         if stuck {
             self.stuck_count += 1;
         } else {
@@ -749,7 +754,7 @@ impl NodeConstants {
 /// Four nodes: `b = beta v + gamma (T_{i+1/2} - T_{i-1/2}) / dx + eps c_d n_F / a`, then the exact
 /// stick update of [`crate::friction::select_with_inverse`], lane by lane, with the friction
 /// coefficients `g`, `push`, `inv_g` of these nodes. Returns the new velocities and the stick
-/// flags (1.0 stuck, 0.0 sliding).
+/// mask (bit `l` set where lane `l` is stuck).
 #[inline(always)]
 fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
     k: &NodeConstants,
@@ -759,7 +764,7 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
     push: F4,
     inv_g: F4,
     acc: &mut NodeLanes,
-) -> (F4, F4) {
+) -> (F4, u8) {
     let zero = F4::splat(0.0);
     let one = F4::splat(1.0);
     let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + push;
@@ -773,9 +778,9 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
         // `b / g` clamped to [-1, 1] (the same bits as clamping `b inv_g` both ways)
         let q = (b.abs() * inv_g).min(one) | b.sign();
         let s = excess.select_le(zero, q, one | b.sign());
-        (v_new, s, excess.le_as_one(zero))
+        (v_new, s, excess.le_bits(zero))
     } else {
-        (b, zero, zero)
+        (b, zero, 0)
     };
     acc.add::<MAP>(v_new, v_old, s);
     if MAP {
@@ -785,14 +790,30 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
 }
 
 /// The arrays of the kernel's whole four-node blocks (nodes `1 ..= whole`), all of one length;
-/// `t_before` is the tension one half node to the left.
+/// `t_before` is the tension one half node to the left; `stuck` the stick masks of the blocks
+/// (one per block), the first of them block number `first`.
 struct Blocks<'a> {
     u: &'a mut [f64],
     v: &'a mut [f64],
     t_here: &'a [f64],
     t_before: &'a [f64],
-    flags: &'a mut [f64],
-    marks: &'a mut [f64],
+    stuck: &'a [u8],
+    first: usize,
+}
+
+impl Blocks<'_> {
+    /// Blocks `from..to` of these (numbered from 0 here).
+    fn range(&mut self, from: usize, to: usize) -> Blocks<'_> {
+        let r = from * LANES..to * LANES;
+        Blocks {
+            u: &mut self.u[r.clone()],
+            v: &mut self.v[r.clone()],
+            t_here: &self.t_here[r.clone()],
+            t_before: &self.t_before[r],
+            stuck: &self.stuck[from..to],
+            first: self.first + from,
+        }
+    }
 }
 
 /// Per-node friction coefficients of the blocks (empty with uniform friction): `g`, `inv_g`,
@@ -807,16 +828,17 @@ struct PerNode<'a> {
 
 /// Pass 2 over whole four-node blocks: [`node_simd`] with the uniform coefficients of `k`, or
 /// with `MAP` the per-node ones (same length as the blocks; `PUSH`: `push` from its array, else
-/// `g n_f`). Stores the new velocities, displacements, stick flags and change marks; returns the
-/// accumulators and whether any node switched. A function of its own with local accumulators,
-/// so they stay in registers.
+/// `g n_f`). Stores the new velocities and displacements, lists the blocks whose stick mask
+/// changed in `switched` (block number, new mask) and returns the accumulators. A function of
+/// its own with local accumulators, so they stay in registers.
 #[inline(never)]
 fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SPEED: bool>(
     k: &NodeConstants,
     mut acc: NodeLanes,
     blocks: Blocks,
     coefficients: PerNode,
-) -> (NodeLanes, bool) {
+    switched: &mut Vec<(u32, u8)>,
+) -> NodeLanes {
     let PerNode {
         g: gs,
         push: pushes,
@@ -825,11 +847,10 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
     } = coefficients;
     let n_f = F4::splat(n_f);
     let len = blocks.u.len();
-    let (u, v, flags, marks) = (
+    let (u, v, stuck) = (
         &mut blocks.u[..len],
         &mut blocks.v[..len],
-        &mut blocks.flags[..len],
-        &mut blocks.marks[..len],
+        &blocks.stuck[..len / LANES],
     );
     let (t_here, t_before) = (&blocks.t_here[..len], &blocks.t_before[..len]);
     let (gs, inv_gs) = if MAP {
@@ -838,7 +859,6 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
         (gs, inv_gs)
     };
     let pushes = if PUSH { &pushes[..len] } else { pushes };
-    let mut any = F4::default();
     let mut j = 0;
     while j + LANES <= len {
         let r = j..j + LANES;
@@ -854,7 +874,7 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
         } else {
             (k.g, k.push, k.inv_g)
         };
-        let (v_new, stuck) = node_simd::<FRICTION, MAP, SPEED>(
+        let (v_new, now) = node_simd::<FRICTION, MAP, SPEED>(
             k,
             F4::load(&v[r.clone()]),
             F4::load(&t_here[r.clone()]) - F4::load(&t_before[r.clone()]),
@@ -863,16 +883,15 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
             inv_g,
             &mut acc,
         );
-        let change = stuck ^ F4::load(&flags[r.clone()]);
         let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
         u_new.store(&mut u[r.clone()]);
-        v_new.store(&mut v[r.clone()]);
-        stuck.store(&mut flags[r.clone()]);
-        change.store(&mut marks[r]);
-        any = any | change;
+        v_new.store(&mut v[r]);
+        if now != stuck[j / LANES] {
+            switched.push(((blocks.first + j / LANES) as u32, now));
+        }
         j += LANES;
     }
-    (acc, any.any_nonzero())
+    acc
 }
 
 /// Pass 2 over the whole blocks (nodes `1 ..= whole`) in a pipe whose friction varies, in runs of
@@ -880,24 +899,18 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
 /// goes through the uniform kernel with that interval's coefficients broadcast (its friction sums
 /// follow from `sum s`, `sum |v|` and `sum v` as in a uniform pipe); the others read each node's
 /// coefficients. Every node gets the same bits either way. Keeps the fastest speed while the map's
-/// check needs it. Returns whether any node switched.
-#[allow(clippy::too_many_arguments)]
+/// check needs it. Lists the blocks whose stick mask changed in `switched`.
 fn map_runs<const FRICTION: bool>(
     k: &NodeConstants,
     acc: &mut NodeLanes,
     m: &NodeFriction,
-    u: &mut [f64],
-    v: &mut [f64],
-    t: &[f64],
-    flags: &mut [f64],
-    marks: &mut [f64],
-    whole: usize,
-) -> bool {
+    mut blocks: Blocks,
+    switched: &mut Vec<(u32, u8)>,
+) {
     let chunks = m.chunk_interval();
-    let per_chunk = LANES * CHUNK_BLOCKS;
+    let count = blocks.stuck.len();
     // the fastest speed costs a reduction: only while the map's check needs it
     let speed = m.needs_reach();
-    let mut any = false;
     let mut c = 0;
     while c < chunks.len() {
         let j = chunks[c];
@@ -905,56 +918,59 @@ fn map_runs<const FRICTION: bool>(
         while e < chunks.len() && chunks[e] == j {
             e += 1;
         }
-        let r = 1 + c * per_chunk..1 + (e * per_chunk).min(whole);
-        let blocks = Blocks {
-            u: &mut u[r.clone()],
-            v: &mut v[r.clone()],
-            t_here: &t[r.clone()],
-            t_before: &t[r.start - 1..r.end - 1],
-            flags: &mut flags[r.clone()],
-            marks: &mut marks[r.clone()],
-        };
-        let switched;
+        let (from, to) = (c * CHUNK_BLOCKS, (e * CHUNK_BLOCKS).min(count));
+        let run = blocks.range(from, to);
         if j == MIXED {
+            let r = 1 + from * LANES..1 + to * LANES;
             let per_node = PerNode {
                 g: &m.g[r.clone()],
                 push: &m.push[r.clone()],
-                inv_g: &m.inv_g[r.clone()],
+                inv_g: &m.inv_g[r],
                 n_f: m.uniform_n_f.unwrap_or(0.0),
             };
-            (*acc, switched) = match (m.uniform_n_f.is_some(), speed) {
+            *acc = match (m.uniform_n_f.is_some(), speed) {
                 (true, true) => {
-                    node_blocks::<FRICTION, true, false, true>(k, *acc, blocks, per_node)
+                    node_blocks::<FRICTION, true, false, true>(k, *acc, run, per_node, switched)
                 }
                 (true, false) => {
-                    node_blocks::<FRICTION, true, false, false>(k, *acc, blocks, per_node)
+                    node_blocks::<FRICTION, true, false, false>(k, *acc, run, per_node, switched)
                 }
                 (false, true) => {
-                    node_blocks::<FRICTION, true, true, true>(k, *acc, blocks, per_node)
+                    node_blocks::<FRICTION, true, true, true>(k, *acc, run, per_node, switched)
                 }
                 (false, false) => {
-                    node_blocks::<FRICTION, true, true, false>(k, *acc, blocks, per_node)
+                    node_blocks::<FRICTION, true, true, false>(k, *acc, run, per_node, switched)
                 }
             };
         } else {
             let (g, push, inv_g) = m.interval_coefficients(j as usize);
             let kj = k.with_friction(g, push, inv_g);
-            let run;
             let none = NodeLanes::default();
-            (run, switched) = if speed {
-                node_blocks::<FRICTION, false, false, true>(&kj, none, blocks, PerNode::default())
+            let nodes = (to - from) * LANES;
+            let sums = if speed {
+                node_blocks::<FRICTION, false, false, true>(
+                    &kj,
+                    none,
+                    run,
+                    PerNode::default(),
+                    switched,
+                )
             } else {
-                node_blocks::<FRICTION, false, false, false>(&kj, none, blocks, PerNode::default())
+                node_blocks::<FRICTION, false, false, false>(
+                    &kj,
+                    none,
+                    run,
+                    PerNode::default(),
+                    switched,
+                )
             };
-            acc.add_run(&run, g, push, r.len());
+            acc.add_run(&sums, g, push, nodes);
         }
-        any |= switched;
         c = e;
     }
-    any
 }
 
-/// One node, the same operations as one lane of [`node_simd`]; returns the change mark.
+/// One node, the same operations as one lane of [`node_simd`]; returns whether it is stuck.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn node_scalar<const FRICTION: bool, const MAP: bool>(
@@ -962,28 +978,25 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
     u: &mut f64,
     v: &mut f64,
     tension_difference: f64,
-    flag: &mut f64,
     (g, push, inv_g): (f64, f64, f64),
     acc: &mut NodeLanes,
-) -> f64 {
+) -> bool {
     let v_old = *v;
     let b = k.beta.first() * v_old + k.gamma_inv_dx.first() * tension_difference + push;
-    let (v_new, s, stuck): (f64, f64, f64) = if FRICTION {
+    let (v_new, s, stuck) = if FRICTION {
         let sel = crate::friction::select_with_inverse(b, g, inv_g);
-        (sel.velocity, sel.s, if sel.stuck { 1.0 } else { 0.0 })
+        (sel.velocity, sel.s, sel.stuck)
     } else {
-        (b, 0.0, 0.0)
+        (b, 0.0, false)
     };
     acc.add_scalar(v_new, v_old, s);
     if MAP {
         acc.add_map_scalar(v_new, s, g, push);
         acc.max_speed = acc.max_speed.max(lane0(v_new.abs()));
     }
-    let change = f64::from_bits(stuck.to_bits() ^ flag.to_bits());
-    *flag = stuck;
     *v = v_new;
     *u += k.dt.first() * v_new;
-    change
+    stuck
 }
 
 /// `x` in lane 0, zeros elsewhere (adding it changes lane 0 only, exactly: `y + 0.0 = y`).
