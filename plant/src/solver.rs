@@ -1176,6 +1176,13 @@ mod tests {
 
     /// The paper's plant on `cells` cells in a pipe with the `[pipe]` section `pipe`.
     fn piped(pipe: &str, cells: usize) -> Solver {
+        let p = paper_with(pipe, cells, Boundary::Periodic);
+        Solver::new(&p, &p.discretisation().unwrap())
+    }
+
+    /// The paper's plant parameters on `cells` cells with `boundary`, in a pipe with the
+    /// `[pipe]` section `pipe`.
+    fn paper_with(pipe: &str, cells: usize, boundary: Boundary) -> PlantParams {
         let text = std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../scenarios/paper.toml"
@@ -1185,7 +1192,136 @@ mod tests {
         let s = crate::Scenario::from_toml(&text, "<test>", &Default::default()).unwrap();
         let mut p = s.plant.clone();
         p.numerics.cells = cells;
-        Solver::new(&p, &p.discretisation().unwrap())
+        p.boundary = boundary;
+        p
+    }
+
+    /// One step of the scheme written out node by node, without the kernel's four-node blocks,
+    /// runs of one interval, packed stick masks, kept face masks or lazy map bookkeeping: the
+    /// tensions, the exact stick update with each node's friction where it stands, the grid
+    /// filter. `origin`: each node's world position at zero displacement, m. Returns the new
+    /// `(u, v, stuck)`.
+    fn reference_step(
+        s: &Solver,
+        origin: &[f64],
+        a: f64,
+        b: f64,
+    ) -> (Vec<f64>, Vec<f64>, Vec<bool>) {
+        let c = s.coef;
+        let n = s.cells();
+        let periodic = s.boundary == Boundary::Periodic;
+        let (mut u, mut v) = (s.u.clone(), s.v.clone());
+        let t: Vec<f64> = (0..n)
+            .map(|i| {
+                if i == n - 1 && !periodic {
+                    return 0.0;
+                }
+                let m = s.sin_table[i] * a + s.cos_table[i] * b;
+                let m = if s.field_active { m + s.field[i] } else { m };
+                c.stiffness_over_dx * (u[(i + 1) % n] - u[i]) + m
+            })
+            .collect();
+        let mut stuck = vec![false; n];
+        for i in 0..n {
+            let (g, push, inv_g) = match &s.map {
+                Some(m) => m.interval_coefficients(m.map.locate(origin[i] + u[i]).index),
+                None => (c.g, c.push, if c.g > 0.0 { 1.0 / c.g } else { 0.0 }),
+            };
+            let bb = c.beta * v[i] + c.gamma_inv_dx * (t[i] - t[(i + n - 1) % n]) + push;
+            let sel = crate::friction::select_with_inverse(bb, g, inv_g);
+            v[i] = sel.velocity;
+            u[i] += c.dt * v[i];
+            stuck[i] = sel.stuck;
+        }
+        if c.filter > 0.0 {
+            let at = |i: isize| -> Option<usize> {
+                let n = n as isize;
+                if periodic {
+                    Some(i.rem_euclid(n) as usize)
+                } else {
+                    (0..n).contains(&i).then_some(i as usize)
+                }
+            };
+            let flux: Vec<f64> = (0..n as isize)
+                .map(|f| {
+                    let inside = (-1..=2).all(|o| at(f + o).is_some());
+                    let free = (-2..=3).all(|o| at(f + o).is_none_or(|j| !stuck[j]));
+                    // the mask multiplies (so a closed face's flux is a zero of either sign); off
+                    // a free body's ends the stencil reads the end node
+                    let open = if inside && free { 1.0 } else { 0.0 };
+                    let w = |o: isize| v[(f + o).clamp(0, n as isize - 1) as usize];
+                    let w = |o: isize| at(f + o).map_or_else(|| w(o), |j| v[j]);
+                    open * ((w(2) - w(-1)) - 3.0 * (w(1) - w(0)))
+                })
+                .collect();
+            let k = -c.filter / 16.0;
+            for i in 0..n {
+                let dv = k * (flux[i] - flux[(i + n - 1) % n]);
+                v[i] += dv;
+                u[i] += c.dt * dv;
+            }
+        }
+        (u, v, stuck)
+    }
+
+    #[test]
+    fn the_kernel_gives_the_bits_of_the_scheme_written_out_node_by_node() {
+        // bodies of whole four-node blocks and of one to three nodes more, both ends, uniform
+        // and textured pipes, with and without a muscle-force field
+        let texture = "\n[pipe]\n[[pipe.features]]\nkind = \"texture\"\nfrom = -1.0\nto = 3.0\n\
+                       eps_std = 0.3\nn_f_std = 0.05\ncorrelation = 0.01\nseed = 9\n";
+        // a patch wide enough for runs of chunks in one interval
+        let patch =
+            "\n[pipe]\n[[pipe.features]]\nkind = \"patch\"\nfrom = 0.2\nto = 0.7\neps = 0.3\n";
+        let (mut transitions, mut runs) = (0, 0);
+        for cells in [9, 10, 11, 12, 13, 67, 130, 263] {
+            for boundary in [Boundary::Periodic, Boundary::Free] {
+                for (pipe, field) in [("", false), (texture, false), (patch, false), ("", true)] {
+                    let p = paper_with(pipe, cells, boundary);
+                    let disc = p.discretisation().unwrap();
+                    let mut s = Solver::new(&p, &disc);
+                    let origin: Vec<f64> = (0..cells)
+                        .map(|i| p.pipe.start + boundary.node_position(i, disc.dx))
+                        .collect();
+                    s.set_wave_number(2.0 * std::f64::consts::PI, disc.dx);
+                    if field {
+                        for (i, g) in s.field.iter_mut().enumerate() {
+                            *g = 0.2 * (i as f64 * 0.7).sin();
+                        }
+                        s.set_field_active(true);
+                    }
+                    let case = format!("{cells} cells, {boundary:?}, pipe {pipe:?}, field {field}");
+                    for step in 0..3000 {
+                        let w = step as f64 * 2e-3;
+                        let (a, b) = (w.sin() * 0.6, w.cos() * 0.6);
+                        let (u, v, stuck) = reference_step(&s, &origin, a, b);
+                        let before = s.stuck.clone();
+                        s.step(a, b);
+                        let bits = |x: &[f64]| x.iter().map(|y| y.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(bits(&s.u), bits(&u), "{case}, step {step}: u");
+                        assert_eq!(bits(&s.v), bits(&v), "{case}, step {step}: v");
+                        assert_eq!(s.stuck, stuck, "{case}, step {step}: stuck");
+                        // the switches, in node order, each with its new state
+                        let switched: Vec<(u32, bool)> = (0..cells)
+                            .filter(|&i| before[i] != stuck[i])
+                            .map(|i| (i as u32, stuck[i]))
+                            .collect();
+                        let reported: Vec<(u32, bool)> =
+                            s.transitions.iter().map(|t| (t.node, t.stuck)).collect();
+                        assert_eq!(reported, switched, "{case}, step {step}: switches");
+                        transitions += switched.len();
+                    }
+                    if let Some(m) = &s.map {
+                        runs += m.chunk_interval().iter().filter(|&&j| j != MIXED).count();
+                    }
+                }
+            }
+        }
+        assert!(transitions > 1000, "{transitions} stick/slip switches");
+        assert!(
+            runs > 0,
+            "no chunk ran with its interval's coefficients broadcast"
+        );
     }
 
     /// The paper's plant on 256 cells in a pipe whose eps (and with `n_f_std > 0` n_F) varies.
