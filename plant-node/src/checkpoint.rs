@@ -13,7 +13,7 @@ use crawler_plant::simulate::EpisodeLog;
 use crawler_plant::task::TaskTracker;
 
 const MAGIC: &[u8; 8] = b"CRWLCKPT";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 
 /// A stopped run: the plant's full state at the start of communication step `state.macro_step`
 /// (no actuation for that step applied yet), and the run's bookkeeping.

@@ -27,6 +27,7 @@ pub fn encode<T: Serialize>(magic: &[u8; 8], version: u32, value: &T) -> Vec<u8>
 fn history(version: u32) -> &'static str {
     match version {
         1 => "format 1: internal step at Courant number 0.9 dividing the communication step, no free ends or pipe map",
+        2 => "format 2: the filter's change of the displacement added apart from the node pass's, so the round-off differs",
         _ => "an unknown earlier format",
     }
 }

@@ -279,8 +279,8 @@ impl NodeFriction {
         }
         let examined = match self.check {
             Check::Lazy { steps, examined } => {
-                // Each of the step's two additions to `u` is off by at most 2^-53 of its result
-                // (twice that here, for the rounding of this line itself).
+                // The step's addition to `u` is off by at most 2^-53 of its result (counted
+                // twice here, and twice again for the rounding of this line itself).
                 let round_off = (self.u_bound + reach) * (2.0 * f64::EPSILON) + f64::MIN_POSITIVE;
                 let bound = (reach + round_off).next_up();
                 self.travel = (self.travel + bound).next_up();

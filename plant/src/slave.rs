@@ -129,7 +129,7 @@ pub fn time_tolerance(t: f64, step: f64) -> f64 {
 }
 
 const STATE_MAGIC: &[u8; 8] = b"CRWLSTAT";
-const STATE_VERSION: u32 = 2;
+const STATE_VERSION: u32 = 3;
 
 impl Slave {
     /// `fmi3InstantiateCoSimulation`: validates the parameters and allocates the plant, without

@@ -370,11 +370,13 @@ impl Solver {
         let f = self.coef.filter;
         if f > 0.0 {
             n.sum_v = self.filter();
+        } else {
+            self.displace();
         }
         // The nodes take the friction of where the step leaves them (after the filter's share).
         if let Some(m) = &mut self.map {
-            // `u` moved by `dt v` in the node pass and by `dt dv` in the filter's, where
-            // `|dv| <= f max|v|` (the flux difference is at most 16 max|v|), plus round-off
+            // `u` moved by `dt (v + dv)`, `v` the node pass's velocity and `dv` the filter's
+            // change, `|dv| <= f max|v|` (the flux difference is at most 16 max|v|), plus round-off
             let reach = self.coef.dt * n.max_speed * (1.0 + f) * (1.0 + 1e-12);
             m.follow_step(&self.u, reach);
         }
@@ -474,7 +476,8 @@ impl Solver {
         acc.finish(c.inv_dx)
     }
 
-    /// Pass 2: new velocities with exact stick, displacements, and the stick/slip switches.
+    /// Pass 2: new velocities with exact stick and the stick/slip switches (the displacements
+    /// follow in pass 3, `u += dt v` with the filtered velocities).
     /// `MAP`: per-node friction coefficients from the pipe's map.
     #[inline(never)]
     fn nodes<const FRICTION: bool, const MAP: bool>(&mut self) -> NodeSums {
@@ -488,7 +491,6 @@ impl Solver {
         let mut lone_count = 0;
         self.switched.clear();
         {
-            let u = &mut self.u[..];
             let v = &mut self.v[..];
             let t = &self.tension[..];
             let stuck = &self.stuck[..];
@@ -499,20 +501,12 @@ impl Solver {
             };
             // node 0 wraps around to the last half node (zero on a free body)
             let cf = scalar_coefficients(&map, 0);
-            let now = node_scalar::<FRICTION, MAP>(
-                &k,
-                &mut u[0],
-                &mut v[0],
-                t[0] - t[n - 1],
-                cf,
-                &mut acc,
-            );
+            let now = node_scalar::<FRICTION, MAP>(&k, &mut v[0], t[0] - t[n - 1], cf, &mut acc);
             if now != stuck[0] {
                 lone[lone_count] = (0, now);
                 lone_count += 1;
             }
             let blocks = Blocks {
-                u: &mut u[1..1 + whole],
                 v: &mut v[1..1 + whole],
                 t_here: &t[1..1 + whole],
                 t_before: &t[..whole],
@@ -533,14 +527,8 @@ impl Solver {
             }
             for i in 1 + whole..n {
                 let cf = scalar_coefficients(&map, i);
-                let now = node_scalar::<FRICTION, MAP>(
-                    &k,
-                    &mut u[i],
-                    &mut v[i],
-                    t[i] - t[i - 1],
-                    cf,
-                    &mut acc,
-                );
+                let now =
+                    node_scalar::<FRICTION, MAP>(&k, &mut v[i], t[i] - t[i - 1], cf, &mut acc);
                 if now != stuck[i] {
                     lone[lone_count] = (i, now);
                     lone_count += 1;
@@ -569,7 +557,7 @@ impl Solver {
 
     /// Pass 3: the grid filter. With the fourth difference written as a difference of fluxes,
     /// `F_{i+1/2} = (v_{i+2} - v_{i-1}) - 3 (v_{i+1} - v_i)`, the velocity changes by
-    /// `-(filter / 16) (F_{i+1/2} - F_{i-1/2})` and the displacement by `dt` times that. A flux is
+    /// `-(filter / 16) (F_{i+1/2} - F_{i-1/2})`, and the displacement by `dt` times the new velocity. A flux is
     /// zero where a stuck node lies within one node of its stencil (nodes `i-2 ..= i+3`) or the
     /// stencil leaves a free body, so stuck nodes stay exactly at rest, the kinks of the velocity
     /// at the edges of stick phases are left alone, and the sum of the velocities (the momentum)
@@ -626,7 +614,7 @@ impl Solver {
                 let dv = k * (F4::load(f) - F4::load(before));
                 let vn = F4::load(vb) + dv;
                 vn.store(vb);
-                (F4::load(ub) + dt * dv).store(ub);
+                (F4::load(ub) + dt * vn).store(ub);
                 sum = sum + vn;
             }
             // the eager check of the pipe map's edges while the chunk is in the first-level cache
@@ -651,10 +639,25 @@ impl Solver {
             let before = if j == 0 { flux[n - 1] } else { flux[j - 1] };
             let dv = kf * (flux[j] - before);
             v[j] += dv;
-            u[j] += dtf * dv;
+            u[j] += dtf * v[j];
             tail += v[j];
         }
         sum.sum() + tail
+    }
+
+    /// Without the filter: the displacements, `u += dt v` (with it, the filter's pass moves the
+    /// nodes by the filtered velocities).
+    #[inline(never)]
+    fn displace(&mut self) {
+        let dt = F4::splat(self.coef.dt);
+        let mut us = self.u.chunks_exact_mut(LANES);
+        let mut vs = self.v.chunks_exact(LANES);
+        for (u, v) in (&mut us).zip(&mut vs) {
+            (F4::load(u) + dt * F4::load(v)).store(u);
+        }
+        for (u, v) in us.into_remainder().iter_mut().zip(vs.remainder()) {
+            *u += self.coef.dt * v;
+        }
     }
 
     /// Records node `i`'s switch to `stuck` (and, for a stop, whether only momentum put it at
@@ -725,7 +728,6 @@ struct NodeConstants {
     push: F4,
     g: F4,
     inv_g: F4,
-    dt: F4,
 }
 
 impl NodeConstants {
@@ -746,7 +748,6 @@ impl NodeConstants {
             push: F4::splat(c.push),
             g: F4::splat(c.g),
             inv_g: F4::splat(if c.g > 0.0 { 1.0 / c.g } else { 0.0 }),
-            dt: F4::splat(c.dt),
         }
     }
 }
@@ -793,7 +794,6 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
 /// `t_before` is the tension one half node to the left; `stuck` the stick masks of the blocks
 /// (one per block), the first of them block number `first`.
 struct Blocks<'a> {
-    u: &'a mut [f64],
     v: &'a mut [f64],
     t_here: &'a [f64],
     t_before: &'a [f64],
@@ -806,7 +806,6 @@ impl Blocks<'_> {
     fn range(&mut self, from: usize, to: usize) -> Blocks<'_> {
         let r = from * LANES..to * LANES;
         Blocks {
-            u: &mut self.u[r.clone()],
             v: &mut self.v[r.clone()],
             t_here: &self.t_here[r.clone()],
             t_before: &self.t_before[r],
@@ -828,7 +827,7 @@ struct PerNode<'a> {
 
 /// Pass 2 over whole four-node blocks: [`node_simd`] with the uniform coefficients of `k`, or
 /// with `MAP` the per-node ones (same length as the blocks; `PUSH`: `push` from its array, else
-/// `g n_f`). Stores the new velocities and displacements, lists the blocks whose stick mask
+/// `g n_f`). Stores the new velocities, lists the blocks whose stick mask
 /// changed in `switched` (block number, new mask) and returns the accumulators. A function of
 /// its own with local accumulators, so they stay in registers.
 #[inline(never)]
@@ -846,12 +845,8 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
         n_f,
     } = coefficients;
     let n_f = F4::splat(n_f);
-    let len = blocks.u.len();
-    let (u, v, stuck) = (
-        &mut blocks.u[..len],
-        &mut blocks.v[..len],
-        &blocks.stuck[..len / LANES],
-    );
+    let len = blocks.v.len();
+    let (v, stuck) = (&mut blocks.v[..len], &blocks.stuck[..len / LANES]);
     let (t_here, t_before) = (&blocks.t_here[..len], &blocks.t_before[..len]);
     let (gs, inv_gs) = if MAP {
         (&gs[..len], &inv_gs[..len])
@@ -883,8 +878,6 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
             inv_g,
             &mut acc,
         );
-        let u_new = F4::load(&u[r.clone()]) + k.dt * v_new;
-        u_new.store(&mut u[r.clone()]);
         v_new.store(&mut v[r]);
         if now != stuck[j / LANES] {
             switched.push(((blocks.first + j / LANES) as u32, now));
@@ -975,7 +968,6 @@ fn map_runs<const FRICTION: bool>(
 #[allow(clippy::too_many_arguments)]
 fn node_scalar<const FRICTION: bool, const MAP: bool>(
     k: &NodeConstants,
-    u: &mut f64,
     v: &mut f64,
     tension_difference: f64,
     (g, push, inv_g): (f64, f64, f64),
@@ -995,7 +987,6 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
         acc.max_speed = acc.max_speed.max(lane0(v_new.abs()));
     }
     *v = v_new;
-    *u += k.dt.first() * v_new;
     stuck
 }
 
@@ -1199,7 +1190,7 @@ mod tests {
     /// One step of the scheme written out node by node, without the kernel's four-node blocks,
     /// runs of one interval, packed stick masks, kept face masks or lazy map bookkeeping: the
     /// tensions, the exact stick update with each node's friction where it stands, the grid
-    /// filter. `origin`: each node's world position at zero displacement, m. Returns the new
+    /// filter, then the displacements `u += dt v`. `origin`: each node's world position at zero displacement, m. Returns the new
     /// `(u, v, stuck)`.
     fn reference_step(
         s: &Solver,
@@ -1230,7 +1221,6 @@ mod tests {
             let bb = c.beta * v[i] + c.gamma_inv_dx * (t[i] - t[(i + n - 1) % n]) + push;
             let sel = crate::friction::select_with_inverse(bb, g, inv_g);
             v[i] = sel.velocity;
-            u[i] += c.dt * v[i];
             stuck[i] = sel.stuck;
         }
         if c.filter > 0.0 {
@@ -1256,10 +1246,11 @@ mod tests {
                 .collect();
             let k = -c.filter / 16.0;
             for i in 0..n {
-                let dv = k * (flux[i] - flux[(i + n - 1) % n]);
-                v[i] += dv;
-                u[i] += c.dt * dv;
+                v[i] += k * (flux[i] - flux[(i + n - 1) % n]);
             }
+        }
+        for i in 0..n {
+            u[i] += c.dt * v[i];
         }
         (u, v, stuck)
     }
@@ -1276,8 +1267,17 @@ mod tests {
         let (mut transitions, mut runs) = (0, 0);
         for cells in [9, 10, 11, 12, 13, 67, 130, 263] {
             for boundary in [Boundary::Periodic, Boundary::Free] {
-                for (pipe, field) in [("", false), (texture, false), (patch, false), ("", true)] {
-                    let p = paper_with(pipe, cells, boundary);
+                for (pipe, field, filter) in [
+                    ("", false, true),
+                    (texture, false, true),
+                    (patch, false, true),
+                    ("", true, true),
+                    (texture, false, false),
+                ] {
+                    let mut p = paper_with(pipe, cells, boundary);
+                    if !filter {
+                        p.numerics.filter = 0.0;
+                    }
                     let disc = p.discretisation().unwrap();
                     let mut s = Solver::new(&p, &disc);
                     let origin: Vec<f64> = (0..cells)
@@ -1290,7 +1290,9 @@ mod tests {
                         }
                         s.set_field_active(true);
                     }
-                    let case = format!("{cells} cells, {boundary:?}, pipe {pipe:?}, field {field}");
+                    let case = format!(
+                        "{cells} cells, {boundary:?}, pipe {pipe:?}, field {field}, filter {filter}"
+                    );
                     for step in 0..3000 {
                         let w = step as f64 * 2e-3;
                         let (a, b) = (w.sin() * 0.6, w.cos() * 0.6);
