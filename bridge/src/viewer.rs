@@ -2,7 +2,8 @@
 //! written (`crawler-bridge record --connect [URL]`, `--spawn`).
 //!
 //! The viewer is best effort and never holds up the file: the recording stream hands each message
-//! to [`ViewerSink`], which queues it (at most [`QUEUE`] messages) for a thread that owns the
+//! to [`ViewerSink`], which queues it (at most [`QUEUE`] messages and [`QUEUE_BYTES`] bytes) for a
+//! thread that owns the
 //! Rerun SDK's [`GrpcSink`]. While the viewer is not reachable the queue keeps the first messages
 //! (the recording's header and layout) and later ones are dropped and counted; once it connects it
 //! gets what was kept and everything from then on. If it goes away, the rest is dropped. The file
@@ -14,6 +15,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use crossbeam_channel::{bounded, Receiver, Sender};
+use rerun::external::re_chunk_store::external::re_chunk::external::re_byte_size::SizeBytes;
 use rerun::external::re_uri::ProxyUri;
 use rerun::log::LogMsg;
 use rerun::sink::{GrpcSink, GrpcSinkConnectionState, LogSink, SinkFlushError};
@@ -21,9 +23,12 @@ use rerun::sink::{GrpcSink, GrpcSinkConnectionState, LogSink, SinkFlushError};
 /// The Rerun SDK's default viewer address, `rerun+http://127.0.0.1:9876/proxy`.
 pub const DEFAULT_URL: &str = rerun::DEFAULT_CONNECT_URL;
 
-/// Messages held for the viewer while it connects or catches up. A message is one chunk of the
-/// batcher (at most about 1 MiB), so this bounds the memory a missing viewer costs.
-pub const QUEUE: usize = 64;
+/// Messages held for the viewer while it connects or catches up (a message is one chunk of the
+/// batcher, typically a few KiB: a few seconds of a run).
+pub const QUEUE: usize = 4096;
+
+/// Bytes held for the viewer at most (the memory a missing or slow viewer costs).
+pub const QUEUE_BYTES: u64 = 64 << 20;
 
 /// Parses a viewer address; errors name `--connect`.
 pub fn parse_url(url: &str) -> anyhow::Result<ProxyUri> {
@@ -68,6 +73,8 @@ pub struct Delivery {
 
 struct Shared {
     link: AtomicU8,
+    /// Bytes of the messages in the queue.
+    queued: AtomicU64,
     dropped: AtomicU64,
     quit: AtomicBool,
     warned_drop: AtomicBool,
@@ -84,7 +91,8 @@ impl Shared {
 }
 
 enum Cmd {
-    Msg(LogMsg),
+    /// A message and its size in bytes.
+    Msg(LogMsg, u64),
     Flush(Sender<Result<(), String>>, Duration),
 }
 
@@ -106,6 +114,7 @@ impl Viewer {
         let (tx, rx) = bounded(QUEUE);
         let shared = Arc::new(Shared {
             link: AtomicU8::new(Link::Connecting as u8),
+            queued: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
             quit: AtomicBool::new(false),
             warned_drop: AtomicBool::new(false),
@@ -158,7 +167,12 @@ impl Viewer {
 
 impl LogSink for ViewerSink {
     fn send(&self, msg: LogMsg) {
-        if self.tx.try_send(Cmd::Msg(msg)).is_err() {
+        let size = msg.total_size_bytes();
+        // counted before it is queued, so the link's thread never takes off more than was added
+        let before = self.shared.queued.fetch_add(size, Ordering::Relaxed);
+        let kept = before + size <= QUEUE_BYTES && self.tx.try_send(Cmd::Msg(msg, size)).is_ok();
+        if !kept {
+            self.shared.queued.fetch_sub(size, Ordering::Relaxed);
             self.shared.drop_one();
             if !self.shared.warned_drop.swap(true, Ordering::Relaxed)
                 && Link::from_u8(self.shared.link.load(Ordering::Relaxed)) == Link::Connected
@@ -204,7 +218,8 @@ fn forward(uri: ProxyUri, rx: Receiver<Cmd>, shared: &Shared) {
     let mut gone = matches!(grpc.status(), GrpcSinkConnectionState::Disconnected(_));
     for cmd in rx.iter() {
         match cmd {
-            Cmd::Msg(msg) => {
+            Cmd::Msg(msg, size) => {
+                shared.queued.fetch_sub(size, Ordering::Relaxed);
                 if gone {
                     shared.drop_one();
                     continue;

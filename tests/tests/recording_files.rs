@@ -14,6 +14,16 @@ use crawler_e2e::{read_recording, repo_root, Recording, Run};
 const PLANT: &[&str] = &["--eps", "1", "--t-end", "6"];
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
 
+/// The tests of this file one at a time: each is a whole co-simulation (plant, controller,
+/// recorder, and a Rerun viewer) and the 2-core machines they run on would otherwise hold four of
+/// them at once. The recorder's link to a viewer is bounded and never slows the run, so a viewer
+/// starved of the CPU by the other runs misses data by design, and the test that a viewer which
+/// keeps up receives the whole run would depend on the load the tests make themselves.
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static ONE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    ONE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 /// The venv's `rerun` (installs it on first use; idempotent).
 fn rerun_cli() -> PathBuf {
     static READY: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
@@ -79,6 +89,7 @@ fn full_run(run: &Run, rrd: &Path, bridge_args: &[&str]) -> String {
 
 #[test]
 fn recordings_of_finished_and_interrupted_runs_pass_rerun_rrd_verify() {
+    let _one = one_at_a_time();
     let run = Run::new("verify");
     // an existing recording is replaced by the new one
     let rrd = run.path("done.rrd");
@@ -200,6 +211,7 @@ fn rows(rec: &Recording) -> BTreeMap<String, usize> {
 
 #[test]
 fn a_running_viewer_receives_the_whole_run_while_the_file_is_written() {
+    let _one = one_at_a_time();
     let run = Run::new("live");
     let mut viewer = Viewer::start(run.dir.path());
     let rrd = run.path("live.rrd");
@@ -230,6 +242,7 @@ fn a_running_viewer_receives_the_whole_run_while_the_file_is_written() {
 
 #[test]
 fn a_viewer_that_goes_away_mid_run_does_not_stop_the_recording() {
+    let _one = one_at_a_time();
     let run = Run::new("gone");
     let mut viewer = Viewer::start(run.dir.path());
     let rrd = run.path("gone.rrd");
@@ -267,6 +280,7 @@ fn a_viewer_that_goes_away_mid_run_does_not_stop_the_recording() {
 /// the port of `--connect`, and the viewer gets the whole run while the file is written.
 #[test]
 fn spawn_starts_a_viewer_that_receives_the_whole_run() {
+    let _one = one_at_a_time();
     let run = Run::new("spawn");
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
