@@ -555,11 +555,11 @@ impl Solver {
         acc.finish(&c, n, MAP, self.stuck_count)
     }
 
-    /// Pass 3: the grid filter. With the fourth difference written as a difference of fluxes,
-    /// `F_{i+1/2} = (v_{i+2} - v_{i-1}) - 3 (v_{i+1} - v_i)`, the velocity changes by
-    /// `-(filter / 16) (F_{i+1/2} - F_{i-1/2})`, and the displacement by `dt` times the new velocity. A flux is
-    /// zero where a stuck node lies within one node of its stencil (nodes `i-2 ..= i+3`) or the
-    /// stencil leaves a free body, so stuck nodes stay exactly at rest, the kinks of the velocity
+    /// Pass 3: the grid filter, and the displacements. With the fourth difference written as a
+    /// difference of fluxes, `F_{i+1/2} = (v_{i+2} - v_{i-1}) - 3 (v_{i+1} - v_i)`, the velocity
+    /// changes by `-(filter / 16) (F_{i+1/2} - F_{i-1/2})`; then `u += dt v`. A flux is zero where
+    /// a stuck node lies within one node of its stencil (nodes `i-2 ..= i+3`) or the stencil
+    /// leaves a free body, so stuck nodes stay exactly at rest, the kinks of the velocity
     /// at the edges of stick phases are left alone, and the sum of the velocities (the momentum)
     /// is unchanged. The Nyquist mode loses the share `filter` per step; a mode of `theta`
     /// radians per cell `filter (1 - cos theta)^2 / 4`, so resolved waves are untouched to fourth
