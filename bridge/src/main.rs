@@ -23,7 +23,7 @@ use crawler_transport::{Credential, Network, Seal};
 const STATE_BYTES: usize = 48 << 20;
 /// Byte budget of everything else in it (events, metrics, predictions): its own, so a backlog of
 /// states never crowds them out.
-const OTHER_BYTES: usize = 8 << 20;
+const OTHER_BYTES: usize = 32 << 20;
 /// Statuses have an inbox and a budget of their own: a flood of episodes (tens of thousands per
 /// second in hard stick-slip) must never drop the plant's final status.
 const STATUS_BYTES: usize = 8 << 20;
@@ -63,8 +63,9 @@ struct RecordArgs {
     /// Recorded steps per heatmap block.
     #[arg(long, default_value_t = 128)]
     heatmap_rows: usize,
-    /// Capacity of the inbox between the zenoh callbacks and the writer, messages.
-    #[arg(long, default_value_t = 4096)]
+    /// Capacity of the inbox between the zenoh callbacks and the writer, messages (the byte
+    /// budgets bound its memory: 48 MiB of states and 32 MiB of the rest).
+    #[arg(long, default_value_t = 65536)]
     inbox: usize,
     /// Leave out the index of chunks (Rerun's footer) at the end of the file: memory stays flat
     /// however long the run (the index costs about 40 MB per 10^6 steps), but `rerun rrd verify`
