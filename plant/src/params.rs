@@ -13,6 +13,9 @@ pub use crawler_protocol::MAX_CELLS;
 pub const MIN_CELLS: usize = 8;
 /// Largest number of internal steps per communication step (guards against absurd `step`).
 pub const MAX_SUBSTEPS: u64 = 1 << 24;
+/// Largest number of internal steps of a run to `t_end` (2^53: the step counter and the clock
+/// `t = t0 + step dt` stay exact in a double, and the count fits the wire's 64-bit steps).
+pub const MAX_RUN_STEPS: u64 = 1 << 53;
 
 /// The crawler's body: a uniform elastic rod.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

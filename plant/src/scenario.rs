@@ -486,7 +486,19 @@ impl RawScenario {
             numerics,
         };
         plant.validate()?;
-        let h = plant.discretisation()?.step;
+        let d = plant.discretisation()?;
+        let h = d.step;
+        let longest = crate::params::MAX_RUN_STEPS as f64 * d.dt;
+        if t_end > longest {
+            return Err(ParamError::new(
+                "numerics.t_end",
+                format!("{t_end:e}"),
+                format!(
+                    "<= {longest:e} s (2^53 internal steps of dt = {:e} s, so that the step count and the clock stay exact)",
+                    d.dt
+                ),
+            ));
+        }
         if h > t_end {
             return Err(ParamError::new(
                 "numerics.step",

@@ -110,6 +110,15 @@ fn invalid_values_name_field_value_and_range() {
             "numerics.t_end",
             "0",
         ),
+        (
+            // so long that the count of internal steps would not fit (it used to saturate)
+            Overrides {
+                t_end: Some(1e300),
+                ..Default::default()
+            },
+            "numerics.t_end",
+            "1e300",
+        ),
     ];
     for (o, field, value) in cases {
         let e = Scenario::load(None, &o).unwrap_err().to_string();
