@@ -394,3 +394,100 @@ impl MetricsTracker {
         self.block = Sums::empty(t);
     }
 }
+
+/// The first internal step `j` (steps start at `j dt`, s) that starts at or after `t` (s).
+fn first_step_from(t: f64, dt: f64) -> u64 {
+    let mut j = (t / dt).ceil().max(0.0) as u64;
+    while j > 0 && (j - 1) as f64 * dt >= t {
+        j -= 1;
+    }
+    while (j as f64) * dt < t {
+        j += 1;
+    }
+    j
+}
+
+/// The end of the block that holds the step starting at `t` (s): the first multiple of
+/// `block_len` (s) after `t`, as [`MetricsTracker`] works it out.
+fn block_end_after(t: f64, block_len: f64) -> f64 {
+    let mut m = (t / block_len).floor().max(0.0) as u64 + 1;
+    while m > 1 && (m - 1) as f64 * block_len > t {
+        m -= 1;
+    }
+    while m as f64 * block_len <= t {
+        m += 1;
+    }
+    m as f64 * block_len
+}
+
+/// Internal steps (of `dt` s, from the moment the actuation was applied) a run must take before
+/// its steady window holds a block: blocks of `block_len` s are counted from that moment, the
+/// first steady block is the first whose first step starts at least `settle` s in, and a block
+/// closes at the first step that starts at or after its end, so that step must be taken too.
+/// The same rules as [`MetricsTracker`], worked out from the block edges.
+pub fn steps_to_steady_block(dt: f64, block_len: f64, settle: f64) -> u64 {
+    let from = settle - 1e-12 * block_len;
+    let j = first_step_from(from, dt);
+    // does step `j` open a block (an edge lies after the step before it and at or before it)?
+    let opens = j == 0 || block_end_after((j - 1) as f64 * dt, block_len) <= j as f64 * dt;
+    let first = if opens {
+        j
+    } else {
+        first_step_from(block_end_after(j as f64 * dt, block_len), dt)
+    };
+    let close = first_step_from(block_end_after(first as f64 * dt, block_len), dt);
+    close + 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The steps [`steps_to_steady_block`] asks for are exactly those after which the tracker's
+    /// steady window first holds a block, for fine and coarse steps, blocks shorter than a step,
+    /// and settle times on, just before and just after block edges.
+    #[test]
+    fn the_steps_to_a_steady_block_are_those_the_tracker_needs() {
+        let sums = StepSums {
+            sum_v: 0.0,
+            sum_v_old: 0.0,
+            sum_s: 0.0,
+            friction_force: 0.0,
+            stuck: 0.0,
+            max_tension: 0.0,
+            max_strain: 0.0,
+            tension_sin: 0.0,
+            tension_cos: 0.0,
+            dissipation: 0.0,
+        };
+        let mut cases = 0;
+        for dt in [1.0e-3, 1.3e-3, 7.0e-3, 0.05, 0.2] {
+            for block_len in [0.0845, 0.1, 0.25, 0.03] {
+                for settle in [
+                    0.0,
+                    0.5,
+                    1.0,
+                    0.0845 * 6.0,
+                    0.3 - 1e-9,
+                    0.3 + 1e-9,
+                    0.7 + 0.5 * dt,
+                ] {
+                    let needed = steps_to_steady_block(dt, block_len, settle);
+                    let mut m = MetricsTracker::new(0.0, block_len, settle);
+                    let mut j = 0u64;
+                    while m.steady.steps == 0 {
+                        m.add_step(j as f64 * dt, dt, &sums, 0.0, 0.0);
+                        j += 1;
+                        assert!(j < 100_000, "no steady block: dt {dt}, block {block_len}");
+                    }
+                    assert_eq!(
+                        needed, j,
+                        "dt {dt} s, block {block_len} s, settle {settle} s"
+                    );
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 140);
+    }
+}

@@ -509,13 +509,21 @@ impl RawScenario {
             ));
         }
         wave.validate_for_body(length, plant.numerics.cells, plant.boundary)?;
-        let needed = plant.numerics.settle + wave.period();
-        if t_end < needed {
+        // The steady metrics average whole blocks (forcing periods) counted from t = 0 that start
+        // after the transient; the run must close the first of them.
+        let settle = plant.numerics.settle;
+        let needed = crate::metrics::steps_to_steady_block(d.dt, plant.numerics.block, settle);
+        if d.steps_until(t_end).saturating_mul(d.substeps) < needed {
+            let macro_steps = needed.div_ceil(d.substeps);
             return Err(ParamError::new(
                 "numerics.t_end",
                 t_end,
                 format!(
-                    ">= settle + one forcing period = {needed:.4} s (the steady metrics average whole periods after the transient)"
+                    "a run of at least {:.6} s ({macro_steps} communication steps of H = {h:e} s): \
+                     the steady metrics average whole forcing periods counted from t = 0 that \
+                     start after settle = {settle} s, and the first of them closes at the first \
+                     internal step after its end",
+                    needed as f64 * d.dt
                 ),
             ));
         }

@@ -56,7 +56,7 @@ pub enum SimulateError {
     /// The run ended before a whole forcing period followed the transient.
     #[error(
         "no whole forcing period after the transient: t_end = {t_end} s, settle = {settle} s, period = {period:.4} s; \
-         increase --t-end (at least settle + one period)"
+         increase --t-end (the first whole period counted from t = 0 that starts after settle must end, and one internal step more)"
     )]
     NoSteadyWindow {
         /// End time, s.
