@@ -424,8 +424,14 @@ fn block_end_after(t: f64, block_len: f64) -> f64 {
 /// its steady window holds a block: blocks of `block_len` s are counted from that moment, the
 /// first steady block is the first whose first step starts at least `settle` s in, and a block
 /// closes at the first step that starts at or after its end, so that step must be taken too.
-/// The same rules as [`MetricsTracker`], worked out from the block edges.
-pub fn steps_to_steady_block(dt: f64, block_len: f64, settle: f64) -> u64 {
+/// The same rules as [`MetricsTracker`], worked out from the block edges. `None` where step or
+/// block counts reach 2^52 before that (the edges' integer arithmetic would not be exact).
+pub fn steps_to_steady_block(dt: f64, block_len: f64, settle: f64) -> Option<u64> {
+    let span = settle + 2.0 * block_len + 2.0 * dt;
+    let limit = (1u64 << 52) as f64;
+    if !(span / dt < limit && span / block_len < limit) {
+        return None;
+    }
     let from = settle - 1e-12 * block_len;
     let j = first_step_from(from, dt);
     // does step `j` open a block (an edge lies after the step before it and at or before it)?
@@ -436,7 +442,7 @@ pub fn steps_to_steady_block(dt: f64, block_len: f64, settle: f64) -> u64 {
         first_step_from(block_end_after(j as f64 * dt, block_len), dt)
     };
     let close = first_step_from(block_end_after(first as f64 * dt, block_len), dt);
-    close + 1
+    Some(close + 1)
 }
 
 #[cfg(test)]
@@ -472,7 +478,7 @@ mod tests {
                     0.3 + 1e-9,
                     0.7 + 0.5 * dt,
                 ] {
-                    let needed = steps_to_steady_block(dt, block_len, settle);
+                    let needed = steps_to_steady_block(dt, block_len, settle).unwrap();
                     let mut m = MetricsTracker::new(0.0, block_len, settle);
                     let mut j = 0u64;
                     while m.steady.steps == 0 {
@@ -489,5 +495,10 @@ mod tests {
             }
         }
         assert_eq!(cases, 140);
+        // counts beyond exact integer arithmetic have no answer (and no endless loop)
+        assert_eq!(steps_to_steady_block(1e-4, 6e300, 5.0), None);
+        assert_eq!(steps_to_steady_block(1e-4, 6e-300, 5.0), None);
+        assert_eq!(steps_to_steady_block(6e-300, 0.1, 5.0), None);
+        assert_eq!(steps_to_steady_block(1e-4, 0.1, f64::MAX), None);
     }
 }

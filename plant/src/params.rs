@@ -255,7 +255,7 @@ impl PlantParams {
                 "numerics.step",
                 self.numerics.step,
                 format!(
-                    "at most {MAX_SUBSTEPS} internal steps of dt = {dt:.3e} s (Courant {} on {} cells) per step",
+                    "at most {MAX_SUBSTEPS} internal steps of dt = {dt:.3e} s (Courant {:.6e} on {} cells) per step",
                     self.numerics.courant, self.numerics.cells
                 ),
             ));

@@ -8,7 +8,7 @@ use std::f64::consts::TAU;
 use std::path::Path;
 
 use crate::error::{finite, non_negative, positive, ParamError};
-use crate::params::{Body, Boundary, Friction, Numerics, PlantParams};
+use crate::params::{Body, Boundary, Discretisation, Friction, Numerics, PlantParams};
 use crate::pipe::Pipe;
 use crate::wave::Wave;
 
@@ -509,24 +509,7 @@ impl RawScenario {
             ));
         }
         wave.validate_for_body(length, plant.numerics.cells, plant.boundary)?;
-        // The steady metrics average whole blocks (forcing periods) counted from t = 0 that start
-        // after the transient; the run must close the first of them.
-        let settle = plant.numerics.settle;
-        let needed = crate::metrics::steps_to_steady_block(d.dt, plant.numerics.block, settle);
-        if d.steps_until(t_end).saturating_mul(d.substeps) < needed {
-            let macro_steps = needed.div_ceil(d.substeps);
-            return Err(ParamError::new(
-                "numerics.t_end",
-                t_end,
-                format!(
-                    "a run of at least {:.6} s ({macro_steps} communication steps of H = {h:e} s): \
-                     the steady metrics average whole forcing periods counted from t = 0 that \
-                     start after settle = {settle} s, and the first of them closes at the first \
-                     internal step after its end",
-                    needed as f64 * d.dt
-                ),
-            ));
-        }
+        check_run_length(t_end, &d, plant.numerics.block, plant.numerics.settle)?;
         self.task.validate()?;
         self.limits.validate()?;
         Ok(Scenario {
@@ -540,4 +523,44 @@ impl RawScenario {
             min_stick_periods,
         })
     }
+}
+
+/// The run to `t_end` (s) on the discretisation `d` must close the first steady averaging block:
+/// the steady metrics average whole blocks of `block` seconds (forcing periods) counted from
+/// t = 0 that start after `settle` seconds, and a block closes at the first internal step after
+/// its end ([`crate::metrics::steps_to_steady_block`]).
+fn check_run_length(
+    t_end: f64,
+    d: &Discretisation,
+    block: f64,
+    settle: f64,
+) -> Result<(), ParamError> {
+    let Some(needed) = crate::metrics::steps_to_steady_block(d.dt, block, settle) else {
+        // counts beyond 2^52: the block rules cannot be followed exactly, only roughly
+        let needed = settle + block;
+        if t_end < needed {
+            return Err(ParamError::new(
+                "numerics.t_end",
+                t_end,
+                format!(">= settle + one averaging block = {needed:e} s"),
+            ));
+        }
+        return Ok(());
+    };
+    if d.steps_until(t_end).saturating_mul(d.substeps) < needed {
+        let macro_steps = needed.div_ceil(d.substeps);
+        return Err(ParamError::new(
+            "numerics.t_end",
+            t_end,
+            format!(
+                "a run of at least {:.6} s ({macro_steps} communication steps of H = {:e} s): \
+                 the steady metrics average whole forcing periods counted from t = 0 that start \
+                 after settle = {settle} s, and the first of them closes at the first internal \
+                 step after its end",
+                needed as f64 * d.dt,
+                d.step
+            ),
+        ));
+    }
+    Ok(())
 }
