@@ -309,17 +309,16 @@ fn run_one(
         anyhow::anyhow!("{why}")
     };
     loop {
-        if let Some((name, code)) =
-            super::first_failure(&mut [&mut plant, &mut controller, &mut bridge])
-        {
+        let failed = super::first_failure(&mut [&mut plant, &mut controller, &mut bridge]);
+        if super::interrupted_with(interrupted, failed) {
             return Err(stop(
-                &format!("the {name} failed (exit code {code:?}; its messages are above)"),
+                "interrupted",
                 &mut [&mut plant, &mut controller, &mut bridge],
             ));
         }
-        if interrupted.load(Ordering::SeqCst) {
+        if let Some((name, code)) = failed {
             return Err(stop(
-                "interrupted",
+                &format!("the {name} failed (exit code {code:?}; its messages are above)"),
                 &mut [&mut plant, &mut controller, &mut bridge],
             ));
         }

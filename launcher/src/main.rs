@@ -314,6 +314,26 @@ impl Proc {
     }
 }
 
+/// True if Ctrl-C reached the launcher, waiting briefly when a child ended interrupted (130): a
+/// terminal's Ctrl-C reaches every process of the group at once, and a child may end before the
+/// launcher's own handler has run. A child interrupted alone (another SIGINT to it) is a failure.
+fn interrupted_with(flag: &AtomicBool, failed: Option<(&'static str, Option<i32>)>) -> bool {
+    if flag.load(Ordering::SeqCst) {
+        return true;
+    }
+    if !failed.is_some_and(|(_, code)| Exit::Interrupted.is(code)) {
+        return false;
+    }
+    let until = Instant::now() + Duration::from_millis(500);
+    while Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(10));
+        if flag.load(Ordering::SeqCst) {
+            return true;
+        }
+    }
+    false
+}
+
 /// The name and exit code of the first process that ended with a failure, if any.
 fn first_failure(procs: &mut [&mut Proc]) -> Option<(&'static str, Option<i32>)> {
     procs.iter_mut().find_map(|p| match p.ended() {
@@ -501,10 +521,11 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         if ready_rx.try_recv().is_ok() {
             break;
         }
-        if interrupted.load(Ordering::SeqCst) {
+        let failed = first_failure(&mut [&mut plant, &mut bridge]);
+        if interrupted_with(&interrupted, failed) {
             return Ok(stop_interrupted(&mut [&mut plant, &mut bridge]));
         }
-        if let Some(failed) = first_failure(&mut [&mut plant, &mut bridge]) {
+        if let Some(failed) = failed {
             return Ok(stop_all(failed, &mut [&mut plant, &mut bridge]));
         }
         if Instant::now() >= connect_by {
@@ -523,14 +544,15 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     )?;
     // Supervise until the plant ends: if any process fails first, stop the others at once.
     loop {
-        if interrupted.load(Ordering::SeqCst) {
+        let failed = first_failure(&mut [&mut plant, &mut controller, &mut bridge]);
+        if interrupted_with(&interrupted, failed) {
             return Ok(stop_interrupted(&mut [
                 &mut plant,
                 &mut controller,
                 &mut bridge,
             ]));
         }
-        if let Some(failed) = first_failure(&mut [&mut plant, &mut controller, &mut bridge]) {
+        if let Some(failed) = failed {
             return Ok(stop_all(
                 failed,
                 &mut [&mut plant, &mut controller, &mut bridge],
@@ -573,5 +595,39 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     } else {
         eprintln!("crawler: exit codes: plant {plant_code:?}, controller {ctl_code:?}, bridge {bridge_code:?}");
         Ok(Exit::Failure.into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_child_interrupted_with_the_launcher_is_a_ctrl_c_and_alone_a_failure() {
+        let flag = AtomicBool::new(false);
+        let interrupted = Some(("controller", Some(130)));
+        // nothing ended, no Ctrl-C; a child failed on its own
+        assert!(!interrupted_with(&flag, None));
+        assert!(!interrupted_with(&flag, Some(("plant", Some(1)))));
+        assert!(!interrupted_with(&flag, Some(("plant", None))));
+        // a child ended with 130 and no Ctrl-C reached the launcher: a failure, after the wait
+        let t0 = Instant::now();
+        assert!(!interrupted_with(&flag, interrupted));
+        assert!(t0.elapsed() >= Duration::from_millis(500));
+        // the launcher's handler runs a little after the child ended
+        let late = Arc::new(AtomicBool::new(false));
+        let setter = {
+            let late = late.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(50));
+                late.store(true, Ordering::SeqCst);
+            })
+        };
+        assert!(interrupted_with(&late, interrupted));
+        setter.join().unwrap();
+        // Ctrl-C reached the launcher: interrupted whatever the children did
+        flag.store(true, Ordering::SeqCst);
+        assert!(interrupted_with(&flag, None));
+        assert!(interrupted_with(&flag, Some(("plant", Some(1)))));
     }
 }
