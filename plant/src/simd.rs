@@ -26,7 +26,10 @@ impl F4 {
     /// The first four values of `x`.
     #[inline(always)]
     pub fn load(x: &[f64]) -> Self {
-        F4(f64x4::new([x[0], x[1], x[2], x[3]]))
+        // one unaligned vector load (element-wise indexing lets the compiler rebuild overlapping
+        // loads from shuffles, which all queue on one port)
+        let lanes: [f64; 4] = x[..4].try_into().expect("four lanes");
+        F4(f64x4::new(lanes))
     }
 
     /// Writes the lanes to the first four values of `out`.

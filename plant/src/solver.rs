@@ -123,8 +123,9 @@ pub struct Solver {
     stuck_bits: Vec<u8>,
     /// Number of stuck nodes, kept at every switch (so the kernel carries one reduction less).
     stuck_count: usize,
-    /// Blocks of the last step whose stick mask differs from `stuck_bits`, with the new mask.
-    switched: Vec<(u32, u8)>,
+    /// The stick masks of the whole blocks after the node pass (written for every block, so the
+    /// pass has no branch; the switches are the bytes that differ from `stuck_bits`).
+    new_bits: Vec<u8>,
     /// True while `field` may be non-zero (general actuation).
     field_active: bool,
     /// Muscle-force field `g_i` at half nodes held over the step, N.
@@ -185,7 +186,7 @@ impl Solver {
             stuck: vec![false; n],
             stuck_bits: vec![0; (n - 1) / LANES],
             stuck_count: 0,
-            switched: Vec::new(),
+            new_bits: vec![0; (n - 1) / LANES],
             last_sum_v: 0.0,
             field_active: false,
             field: vec![0.0; n],
@@ -489,7 +490,6 @@ impl Solver {
         // the nodes outside the whole blocks (node 0 and the tail) that switched, new flag
         let mut lone = [(0, false); LANES];
         let mut lone_count = 0;
-        self.switched.clear();
         {
             let v = &mut self.v[..];
             let t = &self.tension[..];
@@ -510,8 +510,7 @@ impl Solver {
                 v: &mut v[1..1 + whole],
                 t_here: &t[1..1 + whole],
                 t_before: &t[..whole],
-                stuck: &self.stuck_bits,
-                first: 0,
+                masks: &mut self.new_bits,
             };
             match map.as_deref().filter(|_| MAP) {
                 None => {
@@ -520,10 +519,9 @@ impl Solver {
                         acc,
                         blocks,
                         PerNode::default(),
-                        &mut self.switched,
                     );
                 }
-                Some(m) => map_runs::<FRICTION>(&k, &mut acc, m, blocks, &mut self.switched),
+                Some(m) => map_runs::<FRICTION>(&k, &mut acc, m, blocks),
             }
             for i in 1 + whole..n {
                 let cf = scalar_coefficients(&map, i);
@@ -540,12 +538,20 @@ impl Solver {
         if tail == 1 {
             self.record_transition(0, lone[0].1);
         }
-        for s in 0..self.switched.len() {
-            let (b, now) = self.switched[s];
-            let changed = now ^ self.stuck_bits[b as usize];
-            for l in 0..LANES {
-                if changed >> l & 1 != 0 {
-                    self.record_transition(1 + b as usize * LANES + l, now >> l & 1 != 0);
+        // the blocks whose mask changed, found eight at a time
+        let words = self.new_bits.len().div_ceil(8);
+        for w in 0..words {
+            let r = w * 8..(w * 8 + 8).min(self.new_bits.len());
+            if word(&self.new_bits[r.clone()]) == word(&self.stuck_bits[r.clone()]) {
+                continue;
+            }
+            for b in r {
+                let now = self.new_bits[b];
+                let changed = now ^ self.stuck_bits[b];
+                for l in 0..LANES {
+                    if changed >> l & 1 != 0 {
+                        self.record_transition(1 + b * LANES + l, now >> l & 1 != 0);
+                    }
                 }
             }
         }
@@ -583,14 +589,18 @@ impl Solver {
         };
         // Faces 1 ..= n - 3 (stencil i-1 ..= i+2 inside the arrays) four at a time.
         let three = F4::splat(3.0);
-        let mut i = 1;
-        while i + LANES + 2 <= n {
-            let f = ((F4::load(&v[i + 2..i + 6]) - F4::load(&v[i - 1..i + 3]))
-                - three * (F4::load(&v[i + 1..i + 5]) - F4::load(&v[i..i + 4])))
-                * F4::load(&open[i..i + 4]);
-            f.store(&mut flux[i..i + 4]);
-            i += LANES;
+        let m = n.saturating_sub(3) / LANES * LANES;
+        let shifted = |k: usize| v[k..k + m].chunks_exact(LANES);
+        let faces = flux[1..1 + m]
+            .chunks_exact_mut(LANES)
+            .zip(open[1..1 + m].chunks_exact(LANES))
+            .zip(shifted(0).zip(shifted(1)).zip(shifted(2).zip(shifted(3))));
+        for ((f, o), ((before, here), (next, after))) in faces {
+            let d =
+                (F4::load(after) - F4::load(before)) - three * (F4::load(next) - F4::load(here));
+            (d * F4::load(o)).store(f);
         }
+        let i = 1 + m;
         for j in (i..n).chain([0]) {
             let j2 = j as isize;
             flux[j] = open[j] * ((v[at(j2 + 2)] - v[at(j2 - 1)]) - 3.0 * (v[at(j2 + 1)] - v[j]));
@@ -704,6 +714,14 @@ impl Solver {
     }
 }
 
+/// Up to eight bytes as one number (zero-filled), to compare eight stick masks at once.
+#[inline(always)]
+fn word(bytes: &[u8]) -> u64 {
+    let mut w = [0u8; 8];
+    w[..bytes.len()].copy_from_slice(bytes);
+    u64::from_le_bytes(w)
+}
+
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn tension_scalar<const FIELD: bool>(
@@ -769,8 +787,10 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
     let zero = F4::splat(0.0);
     let one = F4::splat(1.0);
     let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + push;
-    let (v_new, s, stuck) = if FRICTION {
+    let (v_new, speed, s, stuck) = if FRICTION {
         let excess = b.abs() - g;
+        // `maxpd` returns its second operand for a NaN or -0.0 excess: never negative, so `speed`
+        // is `|v_new|` bit for bit
         let speed = excess.max(zero);
         if SPEED {
             acc.max_speed = acc.max_speed.max(speed);
@@ -779,11 +799,11 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
         // `b / g` clamped to [-1, 1] (the same bits as clamping `b inv_g` both ways)
         let q = (b.abs() * inv_g).min(one) | b.sign();
         let s = excess.select_le(zero, q, one | b.sign());
-        (v_new, s, excess.le_bits(zero))
+        (v_new, speed, s, excess.le_bits(zero))
     } else {
-        (b, zero, 0)
+        (b, b.abs(), zero, 0)
     };
-    acc.add::<MAP>(v_new, v_old, s);
+    acc.add::<MAP>(v_new, speed, v_old, s);
     if MAP {
         acc.add_map(v_new, s, g, push);
     }
@@ -791,14 +811,13 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
 }
 
 /// The arrays of the kernel's whole four-node blocks (nodes `1 ..= whole`), all of one length;
-/// `t_before` is the tension one half node to the left; `stuck` the stick masks of the blocks
-/// (one per block), the first of them block number `first`.
+/// `t_before` is the tension one half node to the left; `masks` receives the new stick mask of
+/// each block (one per block).
 struct Blocks<'a> {
     v: &'a mut [f64],
     t_here: &'a [f64],
     t_before: &'a [f64],
-    stuck: &'a [u8],
-    first: usize,
+    masks: &'a mut [u8],
 }
 
 impl Blocks<'_> {
@@ -809,8 +828,7 @@ impl Blocks<'_> {
             v: &mut self.v[r.clone()],
             t_here: &self.t_here[r.clone()],
             t_before: &self.t_before[r],
-            stuck: &self.stuck[from..to],
-            first: self.first + from,
+            masks: &mut self.masks[from..to],
         }
     }
 }
@@ -827,8 +845,8 @@ struct PerNode<'a> {
 
 /// Pass 2 over whole four-node blocks: [`node_simd`] with the uniform coefficients of `k`, or
 /// with `MAP` the per-node ones (same length as the blocks; `PUSH`: `push` from its array, else
-/// `g n_f`). Stores the new velocities, lists the blocks whose stick mask
-/// changed in `switched` (block number, new mask) and returns the accumulators. A function of
+/// `g n_f`). Stores the new velocities and the blocks' new stick masks and returns the
+/// accumulators. A function of
 /// its own with local accumulators, so they stay in registers.
 #[inline(never)]
 fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SPEED: bool>(
@@ -836,7 +854,6 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
     mut acc: NodeLanes,
     blocks: Blocks,
     coefficients: PerNode,
-    switched: &mut Vec<(u32, u8)>,
 ) -> NodeLanes {
     let PerNode {
         g: gs,
@@ -846,7 +863,7 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
     } = coefficients;
     let n_f = F4::splat(n_f);
     let len = blocks.v.len();
-    let (v, stuck) = (&mut blocks.v[..len], &blocks.stuck[..len / LANES]);
+    let (v, masks) = (&mut blocks.v[..len], &mut blocks.masks[..len / LANES]);
     let (t_here, t_before) = (&blocks.t_here[..len], &blocks.t_before[..len]);
     let (gs, inv_gs) = if MAP {
         (&gs[..len], &inv_gs[..len])
@@ -879,9 +896,7 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
             &mut acc,
         );
         v_new.store(&mut v[r]);
-        if now != stuck[j / LANES] {
-            switched.push(((blocks.first + j / LANES) as u32, now));
-        }
+        masks[j / LANES] = now;
         j += LANES;
     }
     acc
@@ -892,16 +907,15 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
 /// goes through the uniform kernel with that interval's coefficients broadcast (its friction sums
 /// follow from `sum s`, `sum |v|` and `sum v` as in a uniform pipe); the others read each node's
 /// coefficients. Every node gets the same bits either way. Keeps the fastest speed while the map's
-/// check needs it. Lists the blocks whose stick mask changed in `switched`.
+/// check needs it. Stores the blocks' new stick masks.
 fn map_runs<const FRICTION: bool>(
     k: &NodeConstants,
     acc: &mut NodeLanes,
     m: &NodeFriction,
     mut blocks: Blocks,
-    switched: &mut Vec<(u32, u8)>,
 ) {
     let chunks = m.chunk_interval();
-    let count = blocks.stuck.len();
+    let count = blocks.masks.len();
     // the fastest speed costs a reduction: only while the map's check needs it
     let speed = m.needs_reach();
     let mut c = 0;
@@ -922,17 +936,13 @@ fn map_runs<const FRICTION: bool>(
                 n_f: m.uniform_n_f.unwrap_or(0.0),
             };
             *acc = match (m.uniform_n_f.is_some(), speed) {
-                (true, true) => {
-                    node_blocks::<FRICTION, true, false, true>(k, *acc, run, per_node, switched)
-                }
+                (true, true) => node_blocks::<FRICTION, true, false, true>(k, *acc, run, per_node),
                 (true, false) => {
-                    node_blocks::<FRICTION, true, false, false>(k, *acc, run, per_node, switched)
+                    node_blocks::<FRICTION, true, false, false>(k, *acc, run, per_node)
                 }
-                (false, true) => {
-                    node_blocks::<FRICTION, true, true, true>(k, *acc, run, per_node, switched)
-                }
+                (false, true) => node_blocks::<FRICTION, true, true, true>(k, *acc, run, per_node),
                 (false, false) => {
-                    node_blocks::<FRICTION, true, true, false>(k, *acc, run, per_node, switched)
+                    node_blocks::<FRICTION, true, true, false>(k, *acc, run, per_node)
                 }
             };
         } else {
@@ -941,21 +951,9 @@ fn map_runs<const FRICTION: bool>(
             let none = NodeLanes::default();
             let nodes = (to - from) * LANES;
             let sums = if speed {
-                node_blocks::<FRICTION, false, false, true>(
-                    &kj,
-                    none,
-                    run,
-                    PerNode::default(),
-                    switched,
-                )
+                node_blocks::<FRICTION, false, false, true>(&kj, none, run, PerNode::default())
             } else {
-                node_blocks::<FRICTION, false, false, false>(
-                    &kj,
-                    none,
-                    run,
-                    PerNode::default(),
-                    switched,
-                )
+                node_blocks::<FRICTION, false, false, false>(&kj, none, run, PerNode::default())
             };
             acc.add_run(&sums, g, push, nodes);
         }
@@ -1084,15 +1082,16 @@ struct NodeSums {
 }
 
 impl NodeLanes {
-    /// The reductions every node adds (`sum_abs_v` only with uniform friction).
+    /// The reductions every node adds (`sum_abs_v` only with uniform friction); `speed` is
+    /// `|v_new|`.
     #[inline(always)]
-    fn add<const MAP: bool>(&mut self, v_new: F4, v_old: F4, s: F4) {
+    fn add<const MAP: bool>(&mut self, v_new: F4, speed: F4, v_old: F4, s: F4) {
         let vs = v_old + v_new;
         self.sum_v = self.sum_v + v_new;
         self.sum_s = self.sum_s + s;
         self.sum_vm2 = self.sum_vm2 + vs * vs;
         if !MAP {
-            self.sum_abs_v = self.sum_abs_v + v_new.abs();
+            self.sum_abs_v = self.sum_abs_v + speed;
         }
     }
 
@@ -1190,14 +1189,15 @@ mod tests {
     /// One step of the scheme written out node by node, without the kernel's four-node blocks,
     /// runs of one interval, packed stick masks, kept face masks or lazy map bookkeeping: the
     /// tensions, the exact stick update with each node's friction where it stands, the grid
-    /// filter, then the displacements `u += dt v`. `origin`: each node's world position at zero displacement, m. Returns the new
-    /// `(u, v, stuck)`.
+    /// filter, then the displacements `u += dt v`. `origin`: each node's world position at zero
+    /// displacement, m. Returns the new `(u, v, stuck)` and the step's reductions summed in node
+    /// order.
     fn reference_step(
         s: &Solver,
         origin: &[f64],
         a: f64,
         b: f64,
-    ) -> (Vec<f64>, Vec<f64>, Vec<bool>) {
+    ) -> (Vec<f64>, Vec<f64>, Vec<bool>, ReferenceSums) {
         let c = s.coef;
         let n = s.cells();
         let periodic = s.boundary == Boundary::Periodic;
@@ -1212,6 +1212,16 @@ mod tests {
                 c.stiffness_over_dx * (u[(i + 1) % n] - u[i]) + m
             })
             .collect();
+        let mut sums = ReferenceSums::default();
+        // the free body's head face carries no tension and is left out of the reductions
+        for i in 0..if periodic { n } else { n - 1 } {
+            let du = u[(i + 1) % n] - u[i];
+            sums.max_tension = sums.max_tension.max(t[i]);
+            sums.max_strain = sums.max_strain.max(du.abs());
+            sums.tension_sin.add(t[i] * s.sin_table[i]);
+            sums.tension_cos.add(t[i] * s.cos_table[i]);
+        }
+        sums.max_strain *= c.inv_dx;
         let mut stuck = vec![false; n];
         for i in 0..n {
             let (g, push, inv_g) = match &s.map {
@@ -1220,6 +1230,18 @@ mod tests {
             };
             let bb = c.beta * v[i] + c.gamma_inv_dx * (t[i] - t[(i + n - 1) % n]) + push;
             let sel = crate::friction::select_with_inverse(bb, g, inv_g);
+            // the kernel may sum the two parts of the Coulomb force apart (`g sum s - push N`)
+            let (held, pushed) = (c.a * g * sel.s, c.a * push);
+            let force = held - pushed;
+            sums.sum_v_old.add(v[i]);
+            sums.sum_s.add(sel.s);
+            sums.friction_force.add(force);
+            sums.friction_force.scale += held.abs() + pushed.abs();
+            sums.dissipation
+                .add(0.25 * c.viscous * (v[i] + sel.velocity).powi(2));
+            sums.dissipation.add(force * sel.velocity);
+            sums.dissipation.scale += (held.abs() + pushed.abs()) * sel.velocity.abs();
+            sums.stuck += usize::from(sel.stuck);
             v[i] = sel.velocity;
             stuck[i] = sel.stuck;
         }
@@ -1251,8 +1273,90 @@ mod tests {
         }
         for i in 0..n {
             u[i] += c.dt * v[i];
+            sums.sum_v.add(v[i]);
         }
-        (u, v, stuck)
+        (u, v, stuck, sums)
+    }
+
+    /// A sum with the sum of its terms' magnitudes (the scale of its round-off).
+    #[derive(Debug, Default, Clone, Copy)]
+    struct Sum {
+        value: f64,
+        scale: f64,
+    }
+
+    impl Sum {
+        fn add(&mut self, x: f64) {
+            self.value += x;
+            self.scale += x.abs();
+        }
+
+        /// True if `x` equals this sum to the round-off of either order of summation.
+        fn matches(&self, x: f64) -> bool {
+            (x - self.value).abs() <= 1e-12 * self.scale + 1e-300
+        }
+    }
+
+    /// The reductions of [`StepSums`], summed in node order.
+    #[derive(Debug, Clone, Copy)]
+    struct ReferenceSums {
+        sum_v: Sum,
+        sum_v_old: Sum,
+        sum_s: Sum,
+        friction_force: Sum,
+        dissipation: Sum,
+        stuck: usize,
+        max_tension: f64,
+        max_strain: f64,
+        tension_sin: Sum,
+        tension_cos: Sum,
+    }
+
+    impl Default for ReferenceSums {
+        fn default() -> Self {
+            Self {
+                sum_v: Sum::default(),
+                sum_v_old: Sum::default(),
+                sum_s: Sum::default(),
+                friction_force: Sum::default(),
+                dissipation: Sum::default(),
+                stuck: 0,
+                max_tension: f64::NEG_INFINITY,
+                max_strain: 0.0,
+                tension_sin: Sum::default(),
+                tension_cos: Sum::default(),
+            }
+        }
+    }
+
+    impl ReferenceSums {
+        /// The fields of `k` that differ from these beyond round-off (maxima exactly).
+        fn differences(&self, k: &StepSums) -> Vec<String> {
+            let sums = [
+                ("sum_v", self.sum_v, k.sum_v),
+                ("sum_v_old", self.sum_v_old, k.sum_v_old),
+                ("sum_s", self.sum_s, k.sum_s),
+                ("friction_force", self.friction_force, k.friction_force),
+                ("dissipation", self.dissipation, k.dissipation),
+                ("tension_sin", self.tension_sin, k.tension_sin),
+                ("tension_cos", self.tension_cos, k.tension_cos),
+            ];
+            let exact = [
+                ("stuck", self.stuck as f64, k.stuck),
+                ("max_tension", self.max_tension, k.max_tension),
+                ("max_strain", self.max_strain, k.max_strain),
+            ];
+            sums.iter()
+                .filter(|(_, r, x)| !r.matches(*x))
+                .map(|(name, r, x)| format!("{name}: kernel {x:e}, reference {:e}", r.value))
+                .chain(
+                    exact
+                        .iter()
+                        .filter(|(_, r, x)| r.to_bits() != x.to_bits())
+                        .map(|(name, r, x)| format!("{name}: kernel {x:e}, reference {r:e}")),
+                )
+                .collect()
+        }
     }
 
     #[test]
@@ -1296,9 +1400,11 @@ mod tests {
                     for step in 0..3000 {
                         let w = step as f64 * 2e-3;
                         let (a, b) = (w.sin() * 0.6, w.cos() * 0.6);
-                        let (u, v, stuck) = reference_step(&s, &origin, a, b);
+                        let (u, v, stuck, sums) = reference_step(&s, &origin, a, b);
                         let before = s.stuck.clone();
-                        s.step(a, b);
+                        let kernel = s.step(a, b);
+                        let wrong = sums.differences(&kernel);
+                        assert!(wrong.is_empty(), "{case}, step {step}: {wrong:?}");
                         let bits = |x: &[f64]| x.iter().map(|y| y.to_bits()).collect::<Vec<_>>();
                         assert_eq!(bits(&s.u), bits(&u), "{case}, step {step}: u");
                         assert_eq!(bits(&s.v), bits(&v), "{case}, step {step}: v");
