@@ -27,6 +27,7 @@ pub mod framing;
 pub mod friction;
 pub mod metrics;
 pub mod model_description;
+pub mod node_array;
 mod node_friction;
 pub mod params;
 pub mod pipe;

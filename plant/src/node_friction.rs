@@ -28,6 +28,7 @@
 //! The kernel runs the chunks of [`CHUNK_BLOCKS`] blocks whose nodes all lie in one interval with
 //! that interval's coefficients broadcast, as in a uniform pipe ([`NodeFriction::chunk_interval`]).
 
+use crate::node_array::NodeArray;
 use crate::pipe::FrictionMap;
 use crate::simd::{F4, LANES};
 
@@ -72,14 +73,14 @@ pub struct NodeFriction {
     pub index: Vec<usize>,
     /// The interval's edges as displacements, rounded inwards: `u_lo <= u < u_hi` implies that
     /// the node's world position lies in the interval, m.
-    u_lo: Vec<f64>,
-    u_hi: Vec<f64>,
+    u_lo: NodeArray,
+    u_hi: NodeArray,
     /// `eps_i c_d / a`, m/s.
-    pub g: Vec<f64>,
+    pub g: NodeArray,
     /// `1 / g_i` (0 where `g_i = 0`), s/m.
-    pub inv_g: Vec<f64>,
+    pub inv_g: NodeArray,
     /// `eps_i c_d n_F,i / a`, m/s.
-    pub push: Vec<f64>,
+    pub push: NodeArray,
     /// n_F where it is the same in every interval (then `push = g n_F`, one array less to read).
     pub uniform_n_f: Option<f64>,
     /// Per block of [`LANES`] nodes from node 1: no node of the block can have left its interval
@@ -155,11 +156,11 @@ impl NodeFriction {
             intervals,
             origin,
             index: vec![0; n],
-            u_lo: vec![0.0; n],
-            u_hi: vec![0.0; n],
-            g: vec![0.0; n],
-            inv_g: vec![0.0; n],
-            push: vec![0.0; n],
+            u_lo: NodeArray::zeros(n),
+            u_hi: NodeArray::zeros(n),
+            g: NodeArray::zeros(n),
+            inv_g: NodeArray::zeros(n),
+            push: NodeArray::zeros(n),
             due: vec![f64::NEG_INFINITY; whole_blocks(n).1],
             travel: 0.0,
             u_bound: 0.0,

@@ -404,8 +404,10 @@ impl Plant {
 
     fn save_backup(&mut self) {
         let b = &mut self.backup;
-        b.u.clone_from(&self.solver.u);
-        b.v.clone_from(&self.solver.v);
+        b.u.clear();
+        b.u.extend_from_slice(&self.solver.u);
+        b.v.clear();
+        b.v.extend_from_slice(&self.solver.v);
         b.stuck.clear();
         b.stuck.extend_from_slice(self.solver.stuck());
         b.metrics.clone_from(&self.metrics);
@@ -416,8 +418,8 @@ impl Plant {
 
     fn restore_backup(&mut self) {
         let b = &self.backup;
-        self.solver.u.clone_from(&b.u);
-        self.solver.v.clone_from(&b.v);
+        self.solver.u.copy_from_slice(&b.u);
+        self.solver.v.copy_from_slice(&b.v);
         self.solver.set_stuck(&b.stuck);
         self.metrics.clone_from(&b.metrics);
         self.events.clone_from(&b.events);
@@ -508,10 +510,10 @@ impl Plant {
             t0: self.t0,
             step: self.step,
             macro_step: self.macro_step,
-            u: self.solver.u.clone(),
-            v: self.solver.v.clone(),
+            u: self.solver.u.to_vec(),
+            v: self.solver.v.to_vec(),
             stuck: self.solver.stuck().to_vec(),
-            field: self.solver.field.clone(),
+            field: self.solver.field.to_vec(),
             drive: self.drive,
             metrics: MetricsTracker {
                 closed: Vec::new(),
@@ -590,10 +592,11 @@ impl Plant {
         self.t0 = state.t0;
         self.step = state.step;
         self.macro_step = state.macro_step;
-        self.solver.u.clone_from(&state.u);
-        self.solver.v.clone_from(&state.v);
+        // (the lengths were checked above)
+        self.solver.u.copy_from_slice(&state.u);
+        self.solver.v.copy_from_slice(&state.v);
         self.solver.set_stuck(&state.stuck);
-        self.solver.field.clone_from(&state.field);
+        self.solver.field.copy_from_slice(&state.field);
         self.solver
             .set_field_active(state.field.iter().any(|&g| g != 0.0));
         self.drive = state.drive;

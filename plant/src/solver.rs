@@ -35,6 +35,7 @@
 //! its momentum carried it there (the force on it outside the band: a velocity reversal) is
 //! marked ([`Transition::reversal`]) and gets no stick time.
 
+use crate::node_array::NodeArray;
 use crate::node_friction::{chunk_left, NodeFriction, CHUNK_BLOCKS, MIXED};
 use crate::params::{Boundary, Discretisation, PlantParams};
 use crate::simd::{F4, LANES};
@@ -111,9 +112,9 @@ pub struct Solver {
     /// Uniform dry friction coefficient.
     eps: f64,
     /// Displacement `u_i` at nodes, m.
-    pub u: Vec<f64>,
+    pub u: NodeArray,
     /// Velocity `v_i` over the last internal step, m/s.
-    pub v: Vec<f64>,
+    pub v: NodeArray,
     /// Stick flags of the last internal step (set with [`Self::set_stuck`]).
     stuck: Vec<bool>,
     /// Σ v⁺ of the last step in the kernel's lane order (Σ v⁻ of the next one), m/s.
@@ -129,20 +130,20 @@ pub struct Solver {
     /// True while `field` may be non-zero (general actuation).
     field_active: bool,
     /// Muscle-force field `g_i` at half nodes held over the step, N.
-    pub field: Vec<f64>,
-    sin_table: Vec<f64>,
-    cos_table: Vec<f64>,
+    pub field: NodeArray,
+    sin_table: NodeArray,
+    cos_table: NodeArray,
     table_k: f64,
     /// Tensions of the last step (at its start `t_n`), N.
-    tension: Vec<f64>,
+    tension: NodeArray,
     /// Per-node friction when the pipe's friction varies.
     map: Option<NodeFriction>,
     /// Filter fluxes at the half nodes (scratch), m/s.
-    flux: Vec<f64>,
+    flux: NodeArray,
     /// Per face: 1.0 where the filter's flux may act (no stuck node within one node of its
     /// stencil, stencil inside the body), 0.0 where not. Kept up to date at every stick/slip
     /// switch, so the filter reads one mask instead of six stick flags per face.
-    face_open: Vec<f64>,
+    face_open: NodeArray,
     /// Nodes that switched stick/slip in the last step (cleared each step).
     pub transitions: Vec<Transition>,
 }
@@ -181,22 +182,22 @@ impl Solver {
             coef,
             boundary: params.boundary,
             eps: params.friction.eps,
-            u: vec![0.0; n],
-            v: vec![0.0; n],
+            u: NodeArray::zeros(n),
+            v: NodeArray::zeros(n),
             stuck: vec![false; n],
             stuck_bits: vec![0; (n - 1) / LANES],
             stuck_count: 0,
             new_bits: vec![0; (n - 1) / LANES],
             last_sum_v: 0.0,
             field_active: false,
-            field: vec![0.0; n],
-            sin_table: vec![0.0; n],
-            cos_table: vec![0.0; n],
+            field: NodeArray::zeros(n),
+            sin_table: NodeArray::zeros(n),
+            cos_table: NodeArray::zeros(n),
             table_k: f64::NAN,
-            tension: vec![0.0; n],
+            tension: NodeArray::zeros(n),
             map,
-            flux: vec![0.0; n],
-            face_open: Vec::new(),
+            flux: NodeArray::zeros(n),
+            face_open: NodeArray::default(),
             transitions: Vec::new(),
         }
     }
@@ -250,7 +251,7 @@ impl Solver {
     fn refresh_faces(&mut self, nodes: std::ops::Range<usize>) {
         let n = self.cells();
         if self.face_open.len() != n {
-            self.face_open = vec![0.0; n];
+            self.face_open = NodeArray::zeros(n);
             return self.refresh_faces(0..n);
         }
         let span = if nodes.len() >= n {
@@ -1201,7 +1202,7 @@ mod tests {
         let c = s.coef;
         let n = s.cells();
         let periodic = s.boundary == Boundary::Periodic;
-        let (mut u, mut v) = (s.u.clone(), s.v.clone());
+        let (mut u, mut v) = (s.u.to_vec(), s.v.to_vec());
         let t: Vec<f64> = (0..n)
             .map(|i| {
                 if i == n - 1 && !periodic {
