@@ -254,6 +254,15 @@ impl Solver {
             self.face_open = NodeArray::zeros(n);
             return self.refresh_faces(0..n);
         }
+        // Away from the ends (every face's window i-2 ..= i+3 inside the arrays, as for most
+        // switches) the faces read the stick flags directly, without wrapping indices.
+        if nodes.len() < n && nodes.start >= 5 && nodes.end + 5 <= n {
+            for face in nodes.start - 3..nodes.end + 2 {
+                let free = !self.stuck[face - 2..=face + 3].contains(&true);
+                self.face_open[face] = if free { 1.0 } else { 0.0 };
+            }
+            return;
+        }
         let span = if nodes.len() >= n {
             0..n as isize
         } else {
