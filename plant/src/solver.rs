@@ -619,39 +619,22 @@ impl Solver {
         let dt = F4::splat(self.coef.dt);
         let (u, v, flux) = (&mut self.u[..], &mut self.v[..], &self.flux[..]);
         let end = 1 + (n - 1) / LANES * LANES;
-        let mut check = self.map.as_mut().and_then(|m| m.fused_check());
-        let mut count = 0;
-        let mut sum = F4::default();
-        let per_chunk = CHUNK_BLOCKS * LANES;
-        for (c, chunk) in (1..end).step_by(per_chunk).enumerate() {
-            let stop = (chunk + per_chunk).min(end);
-            let blocks = flux[chunk..stop]
-                .chunks_exact(LANES)
-                .zip(flux[chunk - 1..stop - 1].chunks_exact(LANES))
-                .zip(v[chunk..stop].chunks_exact_mut(LANES))
-                .zip(u[chunk..stop].chunks_exact_mut(LANES));
-            for (((f, before), vb), ub) in blocks {
-                let dv = k * (F4::load(f) - F4::load(before));
-                let vn = F4::load(vb) + dv;
-                vn.store(vb);
-                (F4::load(ub) + dt * vn).store(ub);
-                sum = sum + vn;
+        // the eager check of the pipe map's edges, a chunk at a time while it is in the
+        // first-level cache; without it the loop is compiled with no per-chunk work
+        let sum = match self.map.as_mut().and_then(|m| m.fused_check()) {
+            None => filter_chunks(k, dt, flux, v, u, end, |_, _, _| {}),
+            Some(ch) => {
+                let mut count = 0;
+                let sum = filter_chunks(k, dt, flux, v, u, end, |c, u, r| {
+                    if chunk_left(u, &ch.u_lo[r.clone()], &ch.u_hi[r]) {
+                        ch.escaped[count] = c;
+                        count += 1;
+                    }
+                });
+                *ch.count = count;
+                sum
             }
-            // the eager check of the pipe map's edges while the chunk is in the first-level cache
-            if let Some(ch) = &mut check {
-                if chunk_left(
-                    &u[chunk..stop],
-                    &ch.u_lo[chunk..stop],
-                    &ch.u_hi[chunk..stop],
-                ) {
-                    ch.escaped[count] = c;
-                    count += 1;
-                }
-            }
-        }
-        if let Some(ch) = check {
-            *ch.count = count;
-        }
+        };
         let i = end;
         let (kf, dtf) = (k.first(), dt.first());
         let mut tail = 0.0;
@@ -722,6 +705,41 @@ impl Solver {
             reversal,
         });
     }
+}
+
+/// The grid filter's velocity change and the displacements over the whole blocks (nodes
+/// `1..end`), a chunk of [`CHUNK_BLOCKS`] blocks at a time, calling `after_chunk` after each with
+/// the chunk's number, its new displacements (m) and its nodes; returns the sum of the new
+/// velocities (four lanes).
+#[inline(always)]
+fn filter_chunks(
+    k: F4,
+    dt: F4,
+    flux: &[f64],
+    v: &mut [f64],
+    u: &mut [f64],
+    end: usize,
+    mut after_chunk: impl FnMut(usize, &[f64], std::ops::Range<usize>),
+) -> F4 {
+    let mut sum = F4::default();
+    let per_chunk = CHUNK_BLOCKS * LANES;
+    for (c, chunk) in (1..end).step_by(per_chunk).enumerate() {
+        let stop = (chunk + per_chunk).min(end);
+        let blocks = flux[chunk..stop]
+            .chunks_exact(LANES)
+            .zip(flux[chunk - 1..stop - 1].chunks_exact(LANES))
+            .zip(v[chunk..stop].chunks_exact_mut(LANES))
+            .zip(u[chunk..stop].chunks_exact_mut(LANES));
+        for (((f, before), vb), ub) in blocks {
+            let dv = k * (F4::load(f) - F4::load(before));
+            let vn = F4::load(vb) + dv;
+            vn.store(vb);
+            (F4::load(ub) + dt * vn).store(ub);
+            sum = sum + vn;
+        }
+        after_chunk(c, &u[chunk..stop], chunk..stop);
+    }
+    sum
 }
 
 /// Up to eight bytes as one number (zero-filled), to compare eight stick masks at once.
