@@ -409,6 +409,20 @@ impl RawScenario {
             self.task.end_run = x;
         }
 
+        if let Some(name) = self.name.as_deref() {
+            let most = crawler_protocol::MAX_SCENARIO_NAME_LEN;
+            if name.len() > most {
+                return Err(ParamError::new(
+                    "name",
+                    format!(
+                        "{:?}... ({} bytes)",
+                        name.chars().take(24).collect::<String>(),
+                        name.len()
+                    ),
+                    format!("at most {most} bytes (it travels in the plant's final report)"),
+                ));
+            }
+        }
         let body = Body {
             area: self.body.area,
             density: self.body.density,

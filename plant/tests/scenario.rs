@@ -267,3 +267,18 @@ fn boundary_and_pipe_sections_are_read_and_checked() {
     let e = load(&pipe.replace("kind = \"patch\"", "kind = \"hole\"")).unwrap_err();
     assert!(e.to_string().contains("hole"), "{e}");
 }
+
+#[test]
+fn a_name_longer_than_the_report_carries_is_refused_by_field_and_length() {
+    let most = crawler_protocol::MAX_SCENARIO_NAME_LEN;
+    let named = |name: &str| PAPER_TOML.replace("name = \"paper\"", &format!("name = \"{name}\""));
+    assert_eq!(load(&named(&"x".repeat(most))).unwrap().name.len(), most);
+    // a multi-byte name is counted in bytes
+    let e = load(&named(&"é".repeat(most / 2 + 1)))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("name") && e.contains(&format!("{} bytes", most + 2)) && e.contains("at most"),
+        "{e}"
+    );
+}
