@@ -32,7 +32,7 @@ pub struct Episode {
 const SLIDING: u64 = u64::MAX;
 
 /// Tracks the start of the current stick phase of every node.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, PartialEq, Serialize, Deserialize)]
 pub struct EventTracker {
     /// Internal step at which each node's current stick phase began, or `u64::MAX` if sliding.
     stick_start: Vec<u64>,
@@ -40,6 +40,30 @@ pub struct EventTracker {
     reversal: Vec<bool>,
     /// Shortest counted stick phase, s (set by the plant from the applied actuation).
     pub min_stick: f64,
+}
+
+/// `clone_from` copies into the existing buffers (the plant's rollback copy at every
+/// communication step allocates nothing).
+impl Clone for EventTracker {
+    fn clone(&self) -> Self {
+        Self {
+            stick_start: self.stick_start.clone(),
+            reversal: self.reversal.clone(),
+            min_stick: self.min_stick,
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        // every field named, so that a new one cannot be forgotten here
+        let Self {
+            stick_start,
+            reversal,
+            min_stick,
+        } = source;
+        self.stick_start.clone_from(stick_start);
+        self.reversal.clone_from(reversal);
+        self.min_stick = *min_stick;
+    }
 }
 
 /// What the transitions of one step changed in the statistics.
