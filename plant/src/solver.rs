@@ -552,7 +552,7 @@ impl Solver {
         let words = self.new_bits.len().div_ceil(8);
         for w in 0..words {
             let r = w * 8..(w * 8 + 8).min(self.new_bits.len());
-            if word(&self.new_bits[r.clone()]) == word(&self.stuck_bits[r.clone()]) {
+            if same_masks(&self.new_bits[r.clone()], &self.stuck_bits[r.clone()]) {
                 continue;
             }
             for b in r {
@@ -742,12 +742,14 @@ fn filter_chunks(
     sum
 }
 
-/// Up to eight bytes as one number (zero-filled), to compare eight stick masks at once.
+/// True if two runs of up to eight stick masks are equal; eight are compared as one 8-byte number
+/// (a fixed-size load: a shorter run, only at the end of the body, is compared byte by byte).
 #[inline(always)]
-fn word(bytes: &[u8]) -> u64 {
-    let mut w = [0u8; 8];
-    w[..bytes.len()].copy_from_slice(bytes);
-    u64::from_le_bytes(w)
+fn same_masks(a: &[u8], b: &[u8]) -> bool {
+    match (<[u8; 8]>::try_from(a), <[u8; 8]>::try_from(b)) {
+        (Ok(a), Ok(b)) => u64::from_ne_bytes(a) == u64::from_ne_bytes(b),
+        _ => a == b,
+    }
 }
 
 #[inline(always)]
