@@ -56,10 +56,10 @@ pub fn select_with_inverse(b: f64, g: f64, inv_g: f64) -> Selection {
     let excess = b.abs() - g;
     let slide = if excess > 0.0 { excess } else { 0.0 };
     let velocity = slide.copysign(b);
-    let q = b * inv_g;
-    let q = if q < 1.0 { q } else { 1.0 };
-    let q = if q > -1.0 { q } else { -1.0 };
-    let stuck = excess <= 0.0;
+    // `b / g` clamped to [-1, 1] (1 for a NaN `b`), signed as `b`
+    let q = (b.abs() * inv_g).min(1.0).copysign(b);
+    // stuck exactly when it has no slide velocity (a NaN `b` included)
+    let stuck = slide == 0.0;
     let s = if stuck { q } else { 1.0f64.copysign(b) };
     Selection { velocity, s, stuck }
 }

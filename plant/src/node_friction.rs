@@ -129,7 +129,9 @@ impl NodeFriction {
         let intervals = (0..=map.pieces.len())
             .map(|j| {
                 let l = map.interval(j);
-                let g = l.eps * dry / a;
+                // +0.0 for a zero eps of either sign (the kernel tells stick by the sign of
+                // `g - |b|`, which a -0.0 would flip for a node at rest)
+                let g = l.eps * dry / a + 0.0;
                 Interval {
                     lo: l.lo,
                     hi: l.hi,

@@ -7,7 +7,7 @@
 
 use std::ops::{Add, BitAnd, BitOr, BitXor, Mul, Sub};
 
-use wide::{f64x4, CmpGe, CmpLe, CmpLt, CmpNe};
+use wide::{f64x4, CmpGe, CmpLt, CmpNe};
 
 /// Lanes of an [`F4`]: the kernel works on blocks of this many nodes.
 pub const LANES: usize = 4;
@@ -68,16 +68,31 @@ impl F4 {
         F4(self.0 & f64x4::splat(-0.0))
     }
 
-    /// Bit `l` set where lane `l` has `self <= o` (clear where either is NaN).
+    /// Bit `l` set where lane `l`'s sign bit is set (also for -0.0 and a negative NaN).
     #[inline(always)]
-    pub fn le_bits(self, o: Self) -> u8 {
-        self.0.cmp_le(o.0).move_mask() as u8
+    pub fn sign_bits(self) -> u8 {
+        self.0.move_mask() as u8
     }
 
-    /// Lane-wise `if self <= o { then } else { other }`.
+    /// Lane-wise `if sign bit of self { negative } else { otherwise }` (by the sign bit only, as
+    /// `blendvpd`).
     #[inline(always)]
-    pub fn select_le(self, o: Self, then: Self, other: Self) -> Self {
-        F4(self.0.cmp_le(o.0).blend(then.0, other.0))
+    pub fn select_sign(self, negative: Self, otherwise: Self) -> Self {
+        #[cfg(target_feature = "avx")]
+        {
+            F4(self.0.blend(negative.0, otherwise.0))
+        }
+        #[cfg(not(target_feature = "avx"))]
+        {
+            let (m, n, o) = (self.lanes(), negative.lanes(), otherwise.lanes());
+            F4(f64x4::new(std::array::from_fn(|l| {
+                if m[l].is_sign_negative() {
+                    n[l]
+                } else {
+                    o[l]
+                }
+            })))
+        }
     }
 
     /// Horizontal sum in lane order `((l0 + l1) + l2) + l3`.
@@ -201,16 +216,19 @@ mod tests {
         let a = F4(f64x4::new([1.0, -2.0, 0.0, -0.0]));
         let z = F4::splat(0.0);
         assert_eq!(a.max(z).lanes(), [1.0, 0.0, 0.0, 0.0]);
-        assert_eq!(a.le_bits(z), 0b1110);
-        assert_eq!(
-            F4(f64x4::new([f64::NAN, 1.0, -1.0, 2.0])).le_bits(z),
-            0b0100
-        );
-        assert_eq!(F4(f64x4::new([-1.0, 1.0, 1.0, 1.0])).le_bits(z), 0b0001);
+        assert_eq!(a.sign_bits(), 0b1010);
+        // the sign bit of a NaN counts as it is
+        let nan = F4(f64x4::new([f64::NAN, -f64::NAN, 1.0, -1.0]));
+        assert_eq!(nan.sign_bits(), 0b1010);
         assert_eq!((F4::splat(1.0) | a.sign()).lanes(), [1.0, -1.0, 1.0, -1.0]);
+        // by the sign bit alone: -0.0 picks `negative`, +0.0 `otherwise`
         assert_eq!(
-            a.select_le(z, F4::splat(7.0), F4::splat(9.0)).lanes(),
-            [9.0, 7.0, 7.0, 7.0]
+            a.select_sign(F4::splat(7.0), F4::splat(9.0)).lanes(),
+            [9.0, 7.0, 9.0, 7.0]
+        );
+        assert_eq!(
+            nan.select_sign(F4::splat(7.0), F4::splat(9.0)).lanes(),
+            [9.0, 7.0, 9.0, 7.0]
         );
         assert_eq!(F4(f64x4::new([1.0, 5.0, -3.0, 2.0])).max_lane(), 5.0);
         assert_eq!(F4(f64x4::new([1.0, 5.0, -3.0, 2.0])).min_lane(), -3.0);

@@ -818,18 +818,20 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
     let one = F4::splat(1.0);
     let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + push;
     let (v_new, speed, s, stuck) = if FRICTION {
-        let excess = b.abs() - g;
-        // `maxpd` returns its second operand for a NaN or -0.0 excess: never negative, so `speed`
-        // is `|v_new|` bit for bit
-        let speed = excess.max(zero);
+        // the room left in the static band, `g - |b|`: its sign bit is set exactly where the
+        // node slides (`|b| > g`; never -0.0, and a NaN `b` leaves it clear: no slide)
+        let room = g - b.abs();
+        // `-(g - |b|)` is `|b| - g` bit for bit (rounding is symmetric); `maxpd` returns its
+        // second operand for a NaN or -0.0 excess: never negative, so `speed` is `|v_new|`
+        let speed = (room ^ F4::splat(-0.0)).max(zero);
         if SPEED {
             acc.max_speed = acc.max_speed.max(speed);
         }
         let v_new = speed | b.sign();
-        // `b / g` clamped to [-1, 1] (the same bits as clamping `b inv_g` both ways)
+        // `b / g` clamped to [-1, 1], signed as `b` (`minpd` returns its second operand for NaN)
         let q = (b.abs() * inv_g).min(one) | b.sign();
-        let s = excess.select_le(zero, q, one | b.sign());
-        (v_new, speed, s, excess.le_bits(zero))
+        let s = room.select_sign(one | b.sign(), q);
+        (v_new, speed, s, !room.sign_bits() & 0xF)
     } else {
         (b, b.abs(), zero, 0)
     };
@@ -1460,6 +1462,57 @@ mod tests {
             runs > 0,
             "no chunk ran with its interval's coefficients broadcast"
         );
+    }
+
+    #[test]
+    fn a_block_tells_stick_from_slip_as_the_scalar_select_at_the_band_edge_and_for_nan() {
+        let g: f64 = 0.3;
+        let (up, down) = (
+            f64::from_bits(g.to_bits() + 1),
+            f64::from_bits(g.to_bits() - 1),
+        );
+        let bs = [
+            g,
+            -g,
+            up,
+            -up,
+            down,
+            -down,
+            0.0,
+            1e300,
+            -5.0,
+            f64::NAN,
+            -f64::NAN,
+            1e-300,
+        ];
+        let one = F4::splat(1.0);
+        let k = NodeConstants {
+            beta: one,
+            gamma_inv_dx: one,
+            push: F4::splat(0.0),
+            g: F4::splat(g),
+            inv_g: F4::splat(1.0 / g),
+        };
+        let zero = F4::splat(0.0);
+        for b4 in bs.chunks_exact(LANES) {
+            // `b = 1 * 0 + 1 * 0 + push` is `push` bit for bit (no -0.0 among them)
+            let push = F4::load(b4);
+            let mut acc = NodeLanes::default();
+            let (v, mask) =
+                node_simd::<true, false, false>(&k, zero, zero, k.g, push, k.inv_g, &mut acc);
+            for (l, &b) in b4.iter().enumerate() {
+                let sel = crate::friction::select_with_inverse(b, g, 1.0 / g);
+                assert_eq!(v.lanes()[l].to_bits(), sel.velocity.to_bits(), "b = {b:e}");
+                assert_eq!(mask >> l & 1 != 0, sel.stuck, "b = {b:e}");
+                assert_eq!(acc.sum_s.lanes()[l].to_bits(), sel.s.to_bits(), "b = {b:e}");
+            }
+            // a node is stuck exactly when it has no slide velocity, and then only
+            for (l, &b) in b4.iter().enumerate() {
+                let stuck = mask >> l & 1 != 0;
+                assert_eq!(stuck, v.lanes()[l] == 0.0, "b = {b:e}");
+                assert_eq!(stuck, b.abs() <= g || b.is_nan(), "b = {b:e}");
+            }
+        }
     }
 
     /// The paper's plant on 256 cells in a pipe whose eps (and with `n_f_std > 0` n_F) varies.
