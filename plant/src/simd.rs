@@ -2,8 +2,10 @@
 //!
 //! `wide` maps each operation to one AVX instruction when the crate is built with AVX enabled
 //! (the workspace targets x86-64-v3, see `.cargo/config.toml`) and to SSE2 pairs otherwise.
-//! Only correctly rounded IEEE operations and exact selects are used (no fused multiply-add),
-//! so every build gives the same bits, and a lane computes exactly what the scalar code does.
+//! Only correctly rounded IEEE operations and exact selects are used, so every build gives the
+//! same bits, and a lane computes exactly what the scalar code does. The one fused operation,
+//! [`F4::mul_add`], is also correctly rounded (in software where the build has no FMA); the
+//! kernel uses it in its reductions only, never in the update of the state.
 
 use std::ops::{Add, BitAnd, BitOr, BitXor, Mul, Sub};
 
@@ -66,6 +68,24 @@ impl F4 {
     #[inline(always)]
     pub fn sign(self) -> Self {
         F4(self.0 & f64x4::splat(-0.0))
+    }
+
+    /// Lane-wise `self * m + a` with one rounding (a fused multiply-add; where the build lacks
+    /// the instruction, the same correctly rounded result lane by lane in software). Only the
+    /// kernel's reductions use it, never the state's update.
+    #[inline(always)]
+    pub fn mul_add(self, m: Self, a: Self) -> Self {
+        #[cfg(all(target_feature = "avx", target_feature = "fma"))]
+        {
+            F4(self.0.mul_add(m.0, a.0))
+        }
+        #[cfg(not(all(target_feature = "avx", target_feature = "fma")))]
+        {
+            let (x, m, a) = (self.lanes(), m.lanes(), a.lanes());
+            F4(f64x4::new(std::array::from_fn(|l| {
+                x[l].mul_add(m[l], a[l])
+            })))
+        }
     }
 
     /// Bit `l` set where lane `l`'s sign bit is set (also for -0.0 and a negative NaN).
@@ -210,6 +230,15 @@ impl BitXor for F4 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn mul_add_rounds_once() {
+        // (1 + 2^-30)(1 - 2^-30) - 1 = -2^-60 exactly; rounding the product first gives 0
+        let (x, m) = (1.0 + 2f64.powi(-30), 1.0 - 2f64.powi(-30));
+        let fused = F4::splat(x).mul_add(F4::splat(m), F4::splat(-1.0));
+        assert_eq!(fused.lanes(), [-(2f64.powi(-60)); 4]);
+        assert_eq!(x * m - 1.0, 0.0);
+    }
 
     #[test]
     fn selects_match_the_scalar_semantics() {

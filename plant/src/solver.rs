@@ -1055,8 +1055,8 @@ impl TensionLanes {
     fn add(&mut self, t: F4, du: F4, s: F4, c: F4) {
         self.max_tension = t.max(self.max_tension);
         self.max_du = du.abs().max(self.max_du);
-        self.tension_sin = self.tension_sin + t * s;
-        self.tension_cos = self.tension_cos + t * c;
+        self.tension_sin = t.mul_add(s, self.tension_sin);
+        self.tension_cos = t.mul_add(c, self.tension_cos);
     }
 
     #[inline(always)]
@@ -1121,7 +1121,7 @@ impl NodeLanes {
         let vs = v_old + v_new;
         self.sum_v = self.sum_v + v_new;
         self.sum_s = self.sum_s + s;
-        self.sum_vm2 = self.sum_vm2 + vs * vs;
+        self.sum_vm2 = vs.mul_add(vs, self.sum_vm2);
         if !MAP {
             self.sum_abs_v = self.sum_abs_v + speed;
         }
@@ -1129,9 +1129,9 @@ impl NodeLanes {
 
     #[inline(always)]
     fn add_map(&mut self, v_new: F4, s: F4, g: F4, push: F4) {
-        let f = g * s - push;
+        let f = g.mul_add(s, push ^ F4::splat(-0.0));
         self.sum_f = self.sum_f + f;
-        self.sum_fv = self.sum_fv + f * v_new;
+        self.sum_fv = f.mul_add(v_new, self.sum_fv);
     }
 
     /// Adds a run of `count` nodes of one interval with coefficients `g`, `push`, summed as in a
