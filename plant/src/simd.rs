@@ -7,7 +7,7 @@
 //! [`F4::mul_add`], is also correctly rounded (in software where the build has no FMA); the
 //! kernel uses it in its reductions only, never in the update of the state.
 
-use std::ops::{Add, BitAnd, BitOr, BitXor, Mul, Sub};
+use std::ops::{Add, BitAnd, BitOr, BitXor, Mul, Neg, Sub};
 
 use wide::{f64x4, CmpGe, CmpLt, CmpNe};
 
@@ -195,6 +195,15 @@ impl Sub for F4 {
     }
 }
 
+/// Lane-wise negation: the sign bit flipped (exact, `-0.0` for `+0.0`; not `0.0 - x`).
+impl Neg for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn neg(self) -> F4 {
+        F4(self.0 ^ f64x4::splat(-0.0))
+    }
+}
+
 impl Mul for F4 {
     type Output = F4;
     #[inline(always)]
@@ -250,6 +259,8 @@ mod tests {
         let nan = F4(f64x4::new([f64::NAN, -f64::NAN, 1.0, -1.0]));
         assert_eq!(nan.sign_bits(), 0b1010);
         assert_eq!((F4::splat(1.0) | a.sign()).lanes(), [1.0, -1.0, 1.0, -1.0]);
+        let negated = (-a).lanes().map(f64::to_bits);
+        assert_eq!(negated, [-1.0, 2.0, -0.0, 0.0f64].map(f64::to_bits));
         // by the sign bit alone: -0.0 picks `negative`, +0.0 `otherwise`
         assert_eq!(
             a.select_sign(F4::splat(7.0), F4::splat(9.0)).lanes(),

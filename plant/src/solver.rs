@@ -823,7 +823,7 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
         let room = g - b.abs();
         // `-(g - |b|)` is `|b| - g` bit for bit (rounding is symmetric); `maxpd` returns its
         // second operand for a NaN or -0.0 excess: never negative, so `speed` is `|v_new|`
-        let speed = (room ^ F4::splat(-0.0)).max(zero);
+        let speed = (-room).max(zero);
         if SPEED {
             acc.max_speed = acc.max_speed.max(speed);
         }
@@ -1129,7 +1129,7 @@ impl NodeLanes {
 
     #[inline(always)]
     fn add_map(&mut self, v_new: F4, s: F4, g: F4, push: F4) {
-        let f = g.mul_add(s, push ^ F4::splat(-0.0));
+        let f = g.mul_add(s, -push);
         self.sum_f = self.sum_f + f;
         self.sum_fv = f.mul_add(v_new, self.sum_fv);
     }
