@@ -4,8 +4,8 @@
 //! (the workspace targets x86-64-v3, see `.cargo/config.toml`) and to SSE2 pairs otherwise.
 //! Only correctly rounded IEEE operations and exact selects are used, so every build gives the
 //! same bits, and a lane computes exactly what the scalar code does. The one fused operation,
-//! [`F4::mul_add`], is also correctly rounded (in software where the build has no FMA); the
-//! kernel uses it in its reductions only, never in the update of the state.
+//! [`F4::mul_add`], is also correctly rounded (in software where the build has no FMA, lane by
+//! lane as the scalar code's `f64::mul_add`), so the kernel uses it wherever a product is added.
 
 use std::ops::{Add, BitAnd, BitOr, BitXor, Mul, Neg, Sub};
 
@@ -71,8 +71,8 @@ impl F4 {
     }
 
     /// Lane-wise `self * m + a` with one rounding (a fused multiply-add; where the build lacks
-    /// the instruction, the same correctly rounded result lane by lane in software). Only the
-    /// kernel's reductions use it, never the state's update.
+    /// the instruction, the same correctly rounded result lane by lane in software, as the scalar
+    /// code's `f64::mul_add`).
     #[inline(always)]
     pub fn mul_add(self, m: Self, a: Self) -> Self {
         #[cfg(all(target_feature = "avx", target_feature = "fma"))]

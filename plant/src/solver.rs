@@ -439,8 +439,8 @@ impl Solver {
             {
                 let (s4, c4) = (F4::load(s4), F4::load(c4));
                 let du = F4::load(x) - F4::load(h);
-                let m = s4 * va + c4 * vb;
-                let t = k1 * du + if FIELD { m + F4::load(g4) } else { m };
+                let m = s4.mul_add(va, c4 * vb);
+                let t = k1.mul_add(du, if FIELD { m + F4::load(g4) } else { m });
                 t.store(o);
                 acc.add(t, du, s4, c4);
             }
@@ -606,14 +606,17 @@ impl Solver {
             .zip(open[1..1 + m].chunks_exact(LANES))
             .zip(shifted(0).zip(shifted(1)).zip(shifted(2).zip(shifted(3))));
         for ((f, o), ((before, here), (next, after))) in faces {
-            let d =
-                (F4::load(after) - F4::load(before)) - three * (F4::load(next) - F4::load(here));
+            let d = (-three).mul_add(
+                F4::load(next) - F4::load(here),
+                F4::load(after) - F4::load(before),
+            );
             (d * F4::load(o)).store(f);
         }
         let i = 1 + m;
         for j in (i..n).chain([0]) {
             let j2 = j as isize;
-            flux[j] = open[j] * ((v[at(j2 + 2)] - v[at(j2 - 1)]) - 3.0 * (v[at(j2 + 1)] - v[j]));
+            let d = (-3.0f64).mul_add(v[at(j2 + 1)] - v[j], v[at(j2 + 2)] - v[at(j2 - 1)]);
+            flux[j] = open[j] * d;
         }
         let k = F4::splat(-self.coef.filter / 16.0);
         let dt = F4::splat(self.coef.dt);
@@ -640,9 +643,8 @@ impl Solver {
         let mut tail = 0.0;
         for j in (i..n).chain([0]) {
             let before = if j == 0 { flux[n - 1] } else { flux[j - 1] };
-            let dv = kf * (flux[j] - before);
-            v[j] += dv;
-            u[j] += dtf * v[j];
+            v[j] = kf.mul_add(flux[j] - before, v[j]);
+            u[j] = dtf.mul_add(v[j], u[j]);
             tail += v[j];
         }
         sum.sum() + tail
@@ -656,10 +658,10 @@ impl Solver {
         let mut us = self.u.chunks_exact_mut(LANES);
         let mut vs = self.v.chunks_exact(LANES);
         for (u, v) in (&mut us).zip(&mut vs) {
-            (F4::load(u) + dt * F4::load(v)).store(u);
+            dt.mul_add(F4::load(v), F4::load(u)).store(u);
         }
         for (u, v) in us.into_remainder().iter_mut().zip(vs.remainder()) {
-            *u += self.coef.dt * v;
+            *u = self.coef.dt.mul_add(*v, *u);
         }
     }
 
@@ -695,7 +697,10 @@ impl Solver {
                 None => (self.coef.g, self.coef.push),
             };
             let left = (i + n - 1) % n;
-            let force = self.coef.gamma_inv_dx * (self.tension[i] - self.tension[left]) + push;
+            let force = self
+                .coef
+                .gamma_inv_dx
+                .mul_add(self.tension[i] - self.tension[left], push);
             force.abs() > g
         };
         self.transitions.push(Transition {
@@ -731,10 +736,9 @@ fn filter_chunks(
             .zip(v[chunk..stop].chunks_exact_mut(LANES))
             .zip(u[chunk..stop].chunks_exact_mut(LANES));
         for (((f, before), vb), ub) in blocks {
-            let dv = k * (F4::load(f) - F4::load(before));
-            let vn = F4::load(vb) + dv;
+            let vn = k.mul_add(F4::load(f) - F4::load(before), F4::load(vb));
             vn.store(vb);
-            (F4::load(ub) + dt * vn).store(ub);
+            dt.mul_add(vn, F4::load(ub)).store(ub);
             sum = sum + vn;
         }
         after_chunk(c, &u[chunk..stop], chunk..stop);
@@ -764,8 +768,9 @@ fn tension_scalar<const FIELD: bool>(
     a: f64,
     b: f64,
 ) -> f64 {
-    let m = s * a + co * b;
-    c.stiffness_over_dx * (next - here) + if FIELD { m + g } else { m }
+    let m = s.mul_add(a, co * b);
+    c.stiffness_over_dx
+        .mul_add(next - here, if FIELD { m + g } else { m })
 }
 
 /// The update constants, broadcast to four lanes.
@@ -800,10 +805,11 @@ impl NodeConstants {
     }
 }
 
-/// Four nodes: `b = beta v + gamma (T_{i+1/2} - T_{i-1/2}) / dx + eps c_d n_F / a`, then the exact
-/// stick update of [`crate::friction::select_with_inverse`], lane by lane, with the friction
-/// coefficients `g`, `push`, `inv_g` of these nodes. Returns the new velocities and the stick
-/// mask (bit `l` set where lane `l` is stuck).
+/// Four nodes: `b = gamma (T_{i+1/2} - T_{i-1/2}) / dx + (beta v + eps c_d n_F / a)` (two fused
+/// multiply-adds, as in [`node_scalar`] and every other sum of a product in the step), then the
+/// exact stick update of [`crate::friction::select_with_inverse`], lane by lane, with the
+/// friction coefficients `g`, `push`, `inv_g` of these nodes. Returns the new velocities and the
+/// stick mask (bit `l` set where lane `l` is stuck).
 #[inline(always)]
 fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
     k: &NodeConstants,
@@ -816,7 +822,9 @@ fn node_simd<const FRICTION: bool, const MAP: bool, const SPEED: bool>(
 ) -> (F4, u8) {
     let zero = F4::splat(0.0);
     let one = F4::splat(1.0);
-    let b = k.beta * v_old + k.gamma_inv_dx * tension_difference + push;
+    let b = k
+        .gamma_inv_dx
+        .mul_add(tension_difference, k.beta.mul_add(v_old, push));
     let (v_new, speed, s, stuck) = if FRICTION {
         // the room left in the static band, `g - |b|`: its sign bit is set exactly where the
         // node slides (`|b| > g`; never -0.0, and a NaN `b` leaves it clear: no slide)
@@ -1004,7 +1012,10 @@ fn node_scalar<const FRICTION: bool, const MAP: bool>(
     acc: &mut NodeLanes,
 ) -> bool {
     let v_old = *v;
-    let b = k.beta.first() * v_old + k.gamma_inv_dx.first() * tension_difference + push;
+    let b = k
+        .gamma_inv_dx
+        .first()
+        .mul_add(tension_difference, k.beta.first().mul_add(v_old, push));
     let (v_new, s, stuck) = if FRICTION {
         let sel = crate::friction::select_with_inverse(b, g, inv_g);
         (sel.velocity, sel.s, sel.stuck)
@@ -1239,9 +1250,9 @@ mod tests {
                 if i == n - 1 && !periodic {
                     return 0.0;
                 }
-                let m = s.sin_table[i] * a + s.cos_table[i] * b;
+                let m = s.sin_table[i].mul_add(a, s.cos_table[i] * b);
                 let m = if s.field_active { m + s.field[i] } else { m };
-                c.stiffness_over_dx * (u[(i + 1) % n] - u[i]) + m
+                c.stiffness_over_dx.mul_add(u[(i + 1) % n] - u[i], m)
             })
             .collect();
         let mut sums = ReferenceSums::default();
@@ -1260,7 +1271,9 @@ mod tests {
                 Some(m) => m.interval_coefficients(m.map.locate(origin[i] + u[i]).index),
                 None => (c.g, c.push, if c.g > 0.0 { 1.0 / c.g } else { 0.0 }),
             };
-            let bb = c.beta * v[i] + c.gamma_inv_dx * (t[i] - t[(i + n - 1) % n]) + push;
+            let bb = c
+                .gamma_inv_dx
+                .mul_add(t[i] - t[(i + n - 1) % n], c.beta.mul_add(v[i], push));
             let sel = crate::friction::select_with_inverse(bb, g, inv_g);
             // the kernel may sum the two parts of the Coulomb force apart (`g sum s - push N`)
             let (held, pushed) = (c.a * g * sel.s, c.a * push);
@@ -1295,16 +1308,16 @@ mod tests {
                     let open = if inside && free { 1.0 } else { 0.0 };
                     let w = |o: isize| v[(f + o).clamp(0, n as isize - 1) as usize];
                     let w = |o: isize| at(f + o).map_or_else(|| w(o), |j| v[j]);
-                    open * ((w(2) - w(-1)) - 3.0 * (w(1) - w(0)))
+                    open * (-3.0f64).mul_add(w(1) - w(0), w(2) - w(-1))
                 })
                 .collect();
             let k = -c.filter / 16.0;
             for i in 0..n {
-                v[i] += k * (flux[i] - flux[(i + n - 1) % n]);
+                v[i] = k.mul_add(flux[i] - flux[(i + n - 1) % n], v[i]);
             }
         }
         for i in 0..n {
-            u[i] += c.dt * v[i];
+            u[i] = c.dt.mul_add(v[i], u[i]);
             sums.sum_v.add(v[i]);
         }
         (u, v, stuck, sums)
