@@ -548,22 +548,18 @@ impl Solver {
         if tail == 1 {
             self.record_transition(0, lone[0].1);
         }
-        // the blocks whose mask changed, found eight at a time
-        let words = self.new_bits.len().div_ceil(8);
-        for w in 0..words {
-            let r = w * 8..(w * 8 + 8).min(self.new_bits.len());
-            if same_masks(&self.new_bits[r.clone()], &self.stuck_bits[r.clone()]) {
-                continue;
-            }
-            for b in r {
-                let now = self.new_bits[b];
-                let changed = now ^ self.stuck_bits[b];
-                for l in 0..LANES {
-                    if changed >> l & 1 != 0 {
-                        self.record_transition(1 + b * LANES + l, now >> l & 1 != 0);
-                    }
+        // the blocks whose mask changed, in order (a switch may leave its block's old mask as it
+        // was, so the search goes on after the block)
+        let mut from = 0;
+        while let Some(b) = first_change(&self.new_bits, &self.stuck_bits, from) {
+            let now = self.new_bits[b];
+            let changed = now ^ self.stuck_bits[b];
+            for l in 0..LANES {
+                if changed >> l & 1 != 0 {
+                    self.record_transition(1 + b * LANES + l, now >> l & 1 != 0);
                 }
             }
+            from = b + 1;
         }
         for &(i, now) in &lone[tail..lone_count] {
             self.record_transition(i, now);
@@ -746,14 +742,27 @@ fn filter_chunks(
     sum
 }
 
-/// True if two runs of up to eight stick masks are equal; eight are compared as one 8-byte number
-/// (a fixed-size load: a shorter run, only at the end of the body, is compared byte by byte).
+/// The first block at or after `from` whose stick mask differs between `a` and `b` (of one
+/// length). Runs of 32 masks are compared as four 8-byte numbers at once (fixed-size loads, no
+/// call), the rest and the run that differs byte by byte.
 #[inline(always)]
-fn same_masks(a: &[u8], b: &[u8]) -> bool {
-    match (<[u8; 8]>::try_from(a), <[u8; 8]>::try_from(b)) {
-        (Ok(a), Ok(b)) => u64::from_ne_bytes(a) == u64::from_ne_bytes(b),
-        _ => a == b,
+fn first_change(a: &[u8], b: &[u8], from: usize) -> Option<usize> {
+    const RUN: usize = 32;
+    let (a, b) = (&a[from.min(a.len())..], &b[from.min(b.len())..]);
+    let word = |x: &[u8], k: usize| u64::from_ne_bytes(x[k * 8..k * 8 + 8].try_into().unwrap());
+    let mut start = 0;
+    for (x, y) in a.chunks_exact(RUN).zip(b.chunks_exact(RUN)) {
+        let differ = (0..RUN / 8).fold(0, |d, k| d | (word(x, k) ^ word(y, k)));
+        if differ != 0 {
+            break;
+        }
+        start += RUN;
     }
+    a[start..]
+        .iter()
+        .zip(&b[start..])
+        .position(|(x, y)| x != y)
+        .map(|p| from + start + p)
 }
 
 #[inline(always)]
@@ -1475,6 +1484,33 @@ mod tests {
             runs > 0,
             "no chunk ran with its interval's coefficients broadcast"
         );
+    }
+
+    #[test]
+    fn the_first_changed_mask_is_found_at_every_place_and_from_every_start() {
+        // lengths around the 32-mask runs; one or two changed masks anywhere, and none
+        for len in [0, 1, 31, 32, 33, 64, 95, 100] {
+            let old: Vec<u8> = (0..len).map(|i| (i * 7 % 16) as u8).collect();
+            let naive = |new: &[u8], from: usize| (from..len).find(|&i| new[i] != old[i]);
+            let mut cases = vec![vec![]];
+            for i in 0..len {
+                cases.push(vec![i]);
+                cases.push(vec![i, (i + 33) % len]);
+            }
+            for changed in cases {
+                let mut new = old.clone();
+                for &i in &changed {
+                    new[i] ^= 1 << (i % 4);
+                }
+                for from in 0..=len + 1 {
+                    assert_eq!(
+                        first_change(&new, &old, from),
+                        naive(&new, from),
+                        "len {len}, changed {changed:?}, from {from}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
