@@ -911,42 +911,53 @@ fn node_blocks<const FRICTION: bool, const MAP: bool, const PUSH: bool, const SP
         n_f,
     } = coefficients;
     let n_f = F4::splat(n_f);
+    // zipped chunks of the arrays, so the loops run without bounds checks (and the lengths are
+    // checked here once, as the zips would stop at the shortest)
     let len = blocks.v.len();
-    let (v, masks) = (&mut blocks.v[..len], &mut blocks.masks[..len / LANES]);
-    let (t_here, t_before) = (&blocks.t_here[..len], &blocks.t_before[..len]);
-    let (gs, inv_gs) = if MAP {
-        (&gs[..len], &inv_gs[..len])
-    } else {
-        (gs, inv_gs)
-    };
-    let pushes = if PUSH { &pushes[..len] } else { pushes };
-    let mut j = 0;
-    while j + LANES <= len {
-        let r = j..j + LANES;
-        let (g, push, inv_g) = if MAP {
-            let g = F4::load(&gs[r.clone()]);
-            // `g n_F` is how the map's `push` is worked out: the same bits
-            let push = if PUSH {
-                F4::load(&pushes[r.clone()])
-            } else {
-                g * n_f
-            };
-            (g, push, F4::load(&inv_gs[r.clone()]))
-        } else {
-            (k.g, k.push, k.inv_g)
-        };
+    assert!(blocks.t_here.len() == len && blocks.t_before.len() == len);
+    assert!(blocks.masks.len() == len / LANES);
+    assert!(!MAP || (gs.len() == len && inv_gs.len() == len && (!PUSH || pushes.len() == len)));
+    let nodes = blocks
+        .v
+        .chunks_exact_mut(LANES)
+        .zip(blocks.t_here.chunks_exact(LANES))
+        .zip(blocks.t_before.chunks_exact(LANES))
+        .zip(blocks.masks.iter_mut());
+    let mut node = |((v, t_here), t_before): ((&mut [f64], &[f64]), &[f64]),
+                    mask: &mut u8,
+                    (g, push, inv_g): (F4, F4, F4)| {
         let (v_new, now) = node_simd::<FRICTION, MAP, SPEED>(
             k,
-            F4::load(&v[r.clone()]),
-            F4::load(&t_here[r.clone()]) - F4::load(&t_before[r.clone()]),
+            F4::load(v),
+            F4::load(t_here) - F4::load(t_before),
             g,
             push,
             inv_g,
             &mut acc,
         );
-        v_new.store(&mut v[r]);
-        masks[j / LANES] = now;
-        j += LANES;
+        v_new.store(v);
+        *mask = now;
+    };
+    let per_node = gs.chunks_exact(LANES).zip(inv_gs.chunks_exact(LANES));
+    match (MAP, PUSH) {
+        (false, _) => {
+            for (arrays, mask) in nodes {
+                node(arrays, mask, (k.g, k.push, k.inv_g));
+            }
+        }
+        // `g n_F` is how the map's `push` is worked out: the same bits
+        (true, false) => {
+            for ((arrays, mask), (g, inv_g)) in nodes.zip(per_node) {
+                let g = F4::load(g);
+                node(arrays, mask, (g, g * n_f, F4::load(inv_g)));
+            }
+        }
+        (true, true) => {
+            let per_node = per_node.zip(pushes.chunks_exact(LANES));
+            for ((arrays, mask), ((g, inv_g), push)) in nodes.zip(per_node) {
+                node(arrays, mask, (F4::load(g), F4::load(push), F4::load(inv_g)));
+            }
+        }
     }
     acc
 }
