@@ -19,14 +19,18 @@ use crawler_transport::budget::{ByteBudget, Charged};
 use crawler_transport::gate::{Gate, Refused};
 use crawler_transport::{Credential, Network, Seal};
 
-/// Byte budget of the states in the inbox between the zenoh callbacks and the writer.
-const STATE_BYTES: usize = 48 << 20;
+/// Byte budget of the states in the inbox between the zenoh callbacks and the writer. The three
+/// budgets below (44 MiB together) are what a writer that stalls under a flood (a slow disk's
+/// flush, a starved core) lets the inbox grow to, so together with zenoh's buffers they must stay
+/// well under the 64 MiB a process may grow by (`docs/security.md`). A message larger than its
+/// budget (a state of more than 650 000 cells) still passes when nothing else is queued.
+const STATE_BYTES: usize = 24 << 20;
 /// Byte budget of everything else in it (events, metrics, predictions): its own, so a backlog of
 /// states never crowds them out.
-const OTHER_BYTES: usize = 32 << 20;
+const OTHER_BYTES: usize = 16 << 20;
 /// Statuses have an inbox and a budget of their own: a flood of episodes (tens of thousands per
 /// second in hard stick-slip) must never drop the plant's final status.
-const STATUS_BYTES: usize = 8 << 20;
+const STATUS_BYTES: usize = 4 << 20;
 /// Messages the status inbox holds (a process sends about one status a second).
 const STATUS_SLOTS: usize = 1024;
 
@@ -64,7 +68,7 @@ struct RecordArgs {
     #[arg(long, default_value_t = 128)]
     heatmap_rows: usize,
     /// Capacity of the inbox between the zenoh callbacks and the writer, messages (the byte
-    /// budgets bound its memory: 48 MiB of states and 32 MiB of the rest).
+    /// budgets bound its memory: 24 MiB of states, 16 MiB of the rest, 4 MiB of statuses).
     #[arg(long, default_value_t = 65536)]
     inbox: usize,
     /// Leave out the index of chunks (Rerun's footer) at the end of the file: memory stays flat

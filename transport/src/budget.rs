@@ -1,6 +1,9 @@
 //! Inboxes bounded in bytes: a payload is queued only if the bytes already queued plus its own
-//! stay within the budget, and its bytes are released when the consumer drops it. The count of
-//! messages is bounded too, since each one is charged a fixed overhead on top of its length.
+//! stay within the budget, or if nothing is queued (so a message larger than the whole budget,
+//! which the arrival gate's size limit allows, still gets through one at a time), and its bytes
+//! are released when the consumer drops it. An inbox therefore never holds more than the larger
+//! of its budget and one message. The count of messages is bounded too, since each one is
+//! charged a fixed overhead on top of its length.
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -66,13 +69,13 @@ impl ByteBudget {
     }
 
     /// Charges `len` bytes (plus [`OVERHEAD`]) for `value`; `None` (and one more overflow
-    /// counted) if that would exceed the budget.
+    /// counted) if that would exceed the budget while something else is charged.
     pub fn charge<T>(&self, value: T, len: usize) -> Option<Charged<T>> {
         let bytes = len.saturating_add(OVERHEAD);
         let mut used = self.used.load(Ordering::Acquire);
         loop {
             let next = used.saturating_add(bytes);
-            if next > self.cap {
+            if next > self.cap && used > 0 {
                 self.overflow.fetch_add(1, Ordering::Relaxed);
                 return None;
             }
@@ -137,5 +140,30 @@ mod tests {
         // empty messages are charged their overhead: the count is bounded too
         let held: Vec<_> = (0..100).map_while(|_| b.charge((), 0)).collect();
         assert_eq!(held.len(), 1000 / OVERHEAD);
+    }
+
+    #[test]
+    fn a_message_larger_than_the_budget_passes_alone_and_only_alone() {
+        let b = ByteBudget::new(1000);
+        let small = b.charge((), 10).unwrap();
+        assert!(
+            b.charge((), 5000).is_none(),
+            "queued beside another message"
+        );
+        assert_eq!(b.overflow(), 1);
+        drop(small);
+        let big = b
+            .charge((), 5000)
+            .expect("an empty inbox takes one message of any size");
+        assert_eq!(b.used(), 5000 + OVERHEAD);
+        assert!(
+            b.charge((), 0).is_none(),
+            "nothing joins an inbox beyond its budget"
+        );
+        assert!(b.charge((), 5000).is_none());
+        assert_eq!(b.overflow(), 3);
+        drop(big);
+        assert_eq!(b.used(), 0);
+        assert!(b.charge((), 5000).is_some());
     }
 }
