@@ -187,19 +187,32 @@ impl Model for PaperModel {
                 unreachable!()
             };
             return Prediction {
-                max_stress: Some(Self::max_stress(op)),
-                power: Some(Self::power(op)),
+                max_stress: Some(Self::max_stress(op)).filter(|x| x.is_finite()),
+                power: Some(Self::power(op)).filter(|x| x.is_finite()),
                 ..Prediction::outside("paper", reason)
             };
         };
         let power = Self::power(op);
+        let (stress, strain) = (Self::max_stress(op), Self::max_strain(op));
+        if ![velocity, power, stress, strain]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            return Prediction::outside(
+                "paper",
+                format!(
+                    "not representable in f64 at f0 = {:e} N (overflow)",
+                    op.wave.f0
+                ),
+            );
+        }
         Prediction {
             model: "paper",
             velocity: Some(velocity),
             power: Some(power),
             mileage: Some(velocity.abs() / power),
-            max_stress: Some(Self::max_stress(op)),
-            max_strain: Some(Self::max_strain(op)),
+            max_stress: Some(stress),
+            max_strain: Some(strain),
             stuck_fraction: Some(0.0),
             mean_friction_selection: terms.gamma.map(|g| 2.0 * g / PI),
             episodes_per_node_per_period: Some(0.0),

@@ -431,6 +431,28 @@ impl Model for TravellingWaveModel {
         let stress = max_tension / op.body.area;
         // strain u_x = k y = k (V - w) / omega
         let strain = w.k / w.omega * (velocity - sw.min_w).abs().max((sw.max_w - velocity).abs());
+        // The march carries w, whose swing grows with f0, to about f64::EPSILON of its largest
+        // value (measured: V's error is 1 to 3 EPSILON max |w|), and V is a small mean of it.
+        // Once that round-off nears the speed bound the numbers are noise (at the paper's point
+        // V is 1 % off at f0 = 1e12 N and changes sign near 1e14 N; P overflows near 1e150 N).
+        let round_off = 8.0 * f64::EPSILON * sw.max_w.abs().max(sw.min_w.abs());
+        let bound = op.friction.speed_bound();
+        if bound > 0.0 && round_off > 1e-3 * bound {
+            return Prediction::outside(
+                "improved",
+                format!(
+                    "f0 = {:e} N is too strong for f64: the round-off of the mean speed ({round_off:.1e} m/s) exceeds a thousandth of the speed bound eps c_d (1 + n_F) / c_v = {bound:.3e} m/s",
+                    w.f0
+                ),
+            );
+        }
+        let numbers = [velocity, power, stress, strain, sw.stuck, sw.sum_s];
+        if numbers.iter().any(|x| !x.is_finite()) {
+            return Prediction::outside(
+                "improved",
+                format!("not representable in f64 at f0 = {:e} N (overflow)", w.f0),
+            );
+        }
         Prediction {
             model: "improved",
             velocity: Some(velocity),

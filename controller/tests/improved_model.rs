@@ -109,6 +109,41 @@ fn satisfies_the_steady_identity_and_bound() {
 }
 
 #[test]
+fn a_forcing_too_strong_for_f64_is_outside_validity_not_noise() {
+    let model = TravellingWaveModel::default();
+    let at = |f0: f64| {
+        let s = Scenario::load(
+            None,
+            &Overrides {
+                f0: Some(f0),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        model.predict(&OperatingPoint::of(&s))
+    };
+    let reference = at(100.0).velocity.unwrap();
+    // strong but representable: the speed saturates at the same value, every number finite
+    for f0 in [1e3, 1e6, 1e9] {
+        let p = at(f0);
+        assert!(p.validity.is_valid(), "f0 = {f0}: {:?}", p.validity);
+        let v = p.velocity.unwrap();
+        assert!(rel(v, reference) < 1e-4, "f0 = {f0}: V {v} vs {reference}");
+        assert!(p.power.unwrap().is_finite() && p.max_stress.unwrap().is_finite());
+    }
+    // where the round-off swamps the speed (V changes sign near 1e14 N) and where P overflows
+    for f0 in [1e14, 1e16, 1e200, 1e300] {
+        let p = at(f0);
+        let reason = match &p.validity {
+            crawler_controller::Validity::OutsideValidity(r) => r.clone(),
+            v => panic!("f0 = {f0}: {v:?}, V = {:?}, P = {:?}", p.velocity, p.power),
+        };
+        assert!(reason.contains("round-off"), "{reason}");
+        assert!(p.velocity.is_none() && p.power.is_none());
+    }
+}
+
+#[test]
 fn refines_towards_a_limit_as_the_march_is_refined() {
     let s = Scenario::load(
         None,

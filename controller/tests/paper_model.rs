@@ -143,6 +143,27 @@ fn outside_validity_is_reported_not_nan() {
 }
 
 #[test]
+fn a_forcing_that_overflows_f64_is_reported_not_infinite() {
+    let at = |f0: f64| {
+        PaperModel::default().predict(&op(Overrides {
+            f0: Some(f0),
+            ..Default::default()
+        }))
+    };
+    // P grows as f0^2: 1e100 N is absurd but representable, 1e300 N is not
+    let p = at(1e100);
+    assert!(p.validity.is_valid(), "{:?}", p.validity);
+    assert_eq!(common::finite_floats(&p), Ok(8));
+    let p = at(1e300);
+    assert!(
+        matches!(p.validity, Validity::OutsideValidity(ref r) if r.contains("overflow")),
+        "{:?}",
+        p.validity
+    );
+    assert_eq!(common::finite_floats(&p), Ok(0));
+}
+
+#[test]
 fn reconstructed_displacement_overlays_the_plant_at_small_eps() {
     // eps = 0.1 at resonance: the paper's mu0 + eps mu1 against the converged plant, shape only
     // (the drift's origin is arbitrary: compare u - mean u over the body at one instant).
