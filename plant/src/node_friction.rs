@@ -3,8 +3,11 @@
 //!
 //! A node takes the friction of the piece holding its world position `X = origin + u` after the
 //! whole step, `lo <= X < hi`, exactly as [`FrictionMap::locate`] says; a state restored from
-//! outside places every node that way from scratch. Between steps the bookkeeping is lazy but never
-//! wrong:
+//! outside places every node that way from scratch. On a periodic body node 0 stands for the half
+//! cells at both ends of the body, the tail's at `origin + u` and the head's a body length ahead
+//! ([`Seam`]), and takes the mean of the two places' coefficients (with only the tail's place the
+//! body would sit half a cell behind where it is, an error of first order in the cell size).
+//! Between steps the bookkeeping is lazy but never wrong:
 //!
 //! - each node keeps its piece's edges as displacements rounded inwards, so `u_lo <= u < u_hi`
 //!   implies that `X`, rounded as `locate` rounds it, lies in the piece (a node in the rounding band
@@ -104,6 +107,22 @@ pub struct NodeFriction {
     /// Chunks whose nodes changed interval since `chunk_interval` was last worked out.
     dirty: Vec<usize>,
     is_dirty: Vec<bool>,
+    /// On a periodic body, where node 0's head half cell is.
+    seam: Option<Seam>,
+}
+
+/// Node 0 of a periodic body stands for the half cells at both ends of the body: the tail's place
+/// is its own, `origin[0] + u_0`; the head's is one body length ahead, `(origin[0] + L) + u_0`.
+/// Node 0 takes the mean of the two places' coefficients (`g`, `push`; `inv_g = 1 / g`).
+#[derive(Debug, Clone, Copy)]
+struct Seam {
+    /// World position of the head's place at zero displacement, `origin[0] + L`, m.
+    origin: f64,
+    /// Map interval the head's place is in.
+    index: usize,
+    /// The interval's edges as displacements of node 0, rounded inwards (as `u_lo`, `u_hi`), m.
+    u_lo: f64,
+    u_hi: f64,
 }
 
 /// One interval of the map with the update's coefficients worked out once.
@@ -123,8 +142,15 @@ pub fn whole_blocks(n: usize) -> (usize, usize) {
 
 impl NodeFriction {
     /// Nodes at world positions `origin` (m) at rest; `a = rho/dt + c_v/2` (kg/(m s)) and `dry`
-    /// (`c_d`, N/m) give the coefficients.
-    pub fn new(map: FrictionMap, origin: Vec<f64>, a: f64, dry: f64) -> Self {
+    /// (`c_d`, N/m) give the coefficients. `periodic_length`: on a periodic body its length `L`
+    /// (m; node 0 then also feels the place `L` ahead of it, see [`Seam`]), `None` on a free one.
+    pub fn new(
+        map: FrictionMap,
+        origin: Vec<f64>,
+        a: f64,
+        dry: f64,
+        periodic_length: Option<f64>,
+    ) -> Self {
         let n = origin.len();
         let intervals = (0..=map.pieces.len())
             .map(|j| {
@@ -170,7 +196,14 @@ impl NodeFriction {
                 steps: 0,
                 examined: 0,
             },
+            seam: None,
         };
+        m.seam = periodic_length.map(|l| Seam {
+            origin: m.origin[0] + l,
+            index: 0,
+            u_lo: 0.0,
+            u_hi: 0.0,
+        });
         m.place_all(&vec![0.0; n]);
         m
     }
@@ -181,6 +214,9 @@ impl NodeFriction {
         for (i, &x) in u.iter().enumerate() {
             let j = self.map.locate(self.origin[i] + x).index;
             self.set(i, j);
+        }
+        if let Some(seam) = self.seam {
+            self.set_head(self.map.locate(seam.origin + u[0]).index);
         }
         self.due.fill(f64::NEG_INFINITY);
         self.travel = 0.0;
@@ -228,8 +264,12 @@ impl NodeFriction {
     /// [`Self::follow`] for a node outside its interval's edges (or in their rounding band).
     #[inline(never)]
     fn relocate(&mut self, i: usize, u: f64) {
-        let x = self.origin[i] + u;
-        let mut j = self.index[i];
+        let j = self.walk(self.index[i], self.origin[i] + u);
+        self.set(i, j);
+    }
+
+    /// The interval holding world position `x` (m), walking from interval `j`.
+    fn walk(&self, mut j: usize, x: f64) -> usize {
         let last = self.intervals.len() - 1;
         while j < last && x >= self.intervals[j].hi {
             j += 1;
@@ -237,29 +277,75 @@ impl NodeFriction {
         while j > 0 && x < self.intervals[j].lo {
             j -= 1;
         }
-        self.set(i, j);
+        j
+    }
+
+    /// Node 0's head place ([`Seam`]) for displacement `u` (m): moved to the interval it is in now.
+    fn follow_head(&mut self, u: f64) {
+        if let Some(seam) = self.seam {
+            if !(u >= seam.u_lo && u < seam.u_hi) {
+                self.set_head(self.walk(seam.index, seam.origin + u));
+            }
+        }
+    }
+
+    /// Puts node 0's head place ([`Seam`]) in interval `j` and works out node 0's coefficients.
+    fn set_head(&mut self, j: usize) {
+        let l = self.intervals[j];
+        if let Some(seam) = &mut self.seam {
+            seam.index = j;
+            (seam.u_lo, seam.u_hi) = inner_edges(&l, seam.origin);
+        }
+        self.set_coefficients(0);
+    }
+
+    /// The coefficients of node `i` from its interval (node 0 of a periodic body: the mean of its
+    /// tail's and head's intervals, [`Seam`]).
+    fn set_coefficients(&mut self, i: usize) {
+        let l = self.intervals[self.index[i]];
+        (self.g[i], self.inv_g[i], self.push[i]) = match self.seam.filter(|_| i == 0) {
+            None => (l.g, l.inv_g, l.push),
+            Some(seam) => {
+                let h = self.intervals[seam.index];
+                // the mean of two equal values is that value, bit for bit
+                let g = 0.5 * (l.g + h.g);
+                (
+                    g,
+                    if g > 0.0 { 1.0 / g } else { 0.0 },
+                    0.5 * (l.push + h.push),
+                )
+            }
+        };
+    }
+
+    /// eps and n_F of node `i` (node 0 of a periodic body: the mean eps of its two places and
+    /// the n_F that gives the mean of their `eps n_F`).
+    pub fn friction(&self, i: usize) -> (f64, f64) {
+        let l = self.map.interval(self.index[i]);
+        match self.seam.filter(|_| i == 0) {
+            None => (l.eps, l.n_f),
+            Some(seam) => {
+                let h = self.map.interval(seam.index);
+                if l.eps == h.eps && l.n_f == h.n_f {
+                    return (l.eps, l.n_f);
+                }
+                let eps = 0.5 * (l.eps + h.eps);
+                let n_f = if eps > 0.0 {
+                    0.5 * (l.eps * l.n_f + h.eps * h.n_f) / eps
+                } else {
+                    0.5 * (l.n_f + h.n_f)
+                };
+                (eps, n_f)
+            }
+        }
     }
 
     #[inline]
     fn set(&mut self, i: usize, j: usize) {
         let l = self.intervals[j];
-        let o = self.origin[i];
         self.index[i] = j;
-        // `u >= u_lo >= lo - o` gives `o + u >= lo`, so the rounded sum is `>= lo`;
-        // `u < u_hi <= pred(hi) - o` gives `o + u < pred(hi)`, so the rounded sum is `< hi`.
-        self.u_lo[i] = if l.lo.is_finite() {
-            (l.lo - o).next_up()
-        } else {
-            f64::NEG_INFINITY
-        };
-        self.u_hi[i] = if l.hi.is_finite() {
-            (l.hi.next_down() - o).next_down()
-        } else {
-            f64::INFINITY
-        };
-        self.g[i] = l.g;
-        self.inv_g[i] = l.inv_g;
-        self.push[i] = l.push;
+        (self.u_lo[i], self.u_hi[i]) = inner_edges(&l, self.origin[i]);
+        self.set_coefficients(i);
         // the chunk of node `i`, if it is in the kernel's whole blocks
         if i >= 1 && (i - 1) / LANES < self.due.len() {
             let c = (i - 1) / LANES / CHUNK_BLOCKS;
@@ -277,6 +363,7 @@ impl NodeFriction {
     pub fn follow_step(&mut self, u: &[f64], reach: f64) -> usize {
         let (first, blocks) = whole_blocks(u.len());
         self.follow(0, u[0]);
+        self.follow_head(u[0]);
         for (i, &x) in u.iter().enumerate().skip(first + blocks * LANES) {
             self.follow(i, x);
         }
@@ -430,6 +517,24 @@ impl NodeFriction {
     }
 }
 
+/// Interval `l`'s edges as displacements of a node at world position `o` at rest, rounded
+/// inwards: `u_lo <= u < u_hi` implies that the rounded `o + u` lies in `[lo, hi)`, m.
+fn inner_edges(l: &Interval, o: f64) -> (f64, f64) {
+    // `u >= u_lo >= lo - o` gives `o + u >= lo`, so the rounded sum is `>= lo`;
+    // `u < u_hi <= pred(hi) - o` gives `o + u < pred(hi)`, so the rounded sum is `< hi`.
+    let lo = if l.lo.is_finite() {
+        (l.lo - o).next_up()
+    } else {
+        f64::NEG_INFINITY
+    };
+    let hi = if l.hi.is_finite() {
+        (l.hi.next_down() - o).next_down()
+    } else {
+        f64::INFINITY
+    };
+    (lo, hi)
+}
+
 /// The eager check done in another pass over the displacements (see
 /// [`NodeFriction::fused_check`]).
 pub struct FusedCheck<'a> {
@@ -485,7 +590,7 @@ mod tests {
         let map = pipe.compile(0.1, 0.5);
         assert_eq!(map.pieces.len(), 3);
         let origin = (0..1024).map(|i| i as f64 * 1e-3).collect();
-        NodeFriction::new(map, origin, 2.0, 1.0)
+        NodeFriction::new(map, origin, 2.0, 1.0, None)
     }
 
     /// The intervals `locate` gives for every node.
@@ -564,7 +669,7 @@ mod tests {
             ..Default::default()
         };
         let origin = (0..1024).map(|i| i as f64 * 1e-3).collect();
-        let mut m = NodeFriction::new(pipe.compile(0.1, 0.5), origin, 2.0, 1.0);
+        let mut m = NodeFriction::new(pipe.compile(0.1, 0.5), origin, 2.0, 1.0, None);
         let mut u = vec![0.0; 1024];
         let (mut lazy, mut eager, mut switches) = (0, 0, 0);
         let speed = 2e-4;

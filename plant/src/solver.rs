@@ -176,7 +176,14 @@ impl Solver {
             let origin = (0..n)
                 .map(|i| params.pipe.start + params.boundary.node_position(i, disc.dx))
                 .collect();
-            NodeFriction::new(friction_map, origin, coef.a, params.friction.dry)
+            let periodic_length = (params.boundary == Boundary::Periodic).then_some(params.length);
+            NodeFriction::new(
+                friction_map,
+                origin,
+                coef.a,
+                params.friction.dry,
+                periodic_length,
+            )
         });
         Self {
             coef,
@@ -290,14 +297,7 @@ impl Solver {
     pub fn node_friction(&self) -> Vec<(f64, f64)> {
         match &self.map {
             None => vec![(self.eps, self.coef.n_f); self.cells()],
-            Some(m) => m
-                .index
-                .iter()
-                .map(|&j| {
-                    let l = m.map.interval(j);
-                    (l.eps, l.n_f)
-                })
-                .collect(),
+            Some(m) => (0..self.cells()).map(|i| m.friction(i)).collect(),
         }
     }
 
@@ -1253,11 +1253,13 @@ mod tests {
     /// runs of one interval, packed stick masks, kept face masks or lazy map bookkeeping: the
     /// tensions, the exact stick update with each node's friction where it stands, the grid
     /// filter, then the displacements `u += dt v`. `origin`: each node's world position at zero
-    /// displacement, m. Returns the new `(u, v, stuck)` and the step's reductions summed in node
-    /// order.
+    /// displacement, m; `length`: the body's, m (node 0 of a periodic body takes the mean
+    /// coefficients of its place and the place one body length ahead). Returns the new
+    /// `(u, v, stuck)` and the step's reductions summed in node order.
     fn reference_step(
         s: &Solver,
         origin: &[f64],
+        length: f64,
         a: f64,
         b: f64,
     ) -> (Vec<f64>, Vec<f64>, Vec<bool>, ReferenceSums) {
@@ -1287,8 +1289,19 @@ mod tests {
         sums.max_strain *= c.inv_dx;
         let mut stuck = vec![false; n];
         for i in 0..n {
+            let at = |m: &NodeFriction, x: f64| m.interval_coefficients(m.map.locate(x).index);
             let (g, push, inv_g) = match &s.map {
-                Some(m) => m.interval_coefficients(m.map.locate(origin[i] + u[i]).index),
+                Some(m) if i == 0 && periodic => {
+                    let (tail, head) =
+                        (at(m, origin[0] + u[0]), at(m, (origin[0] + length) + u[0]));
+                    let g = 0.5 * (tail.0 + head.0);
+                    (
+                        g,
+                        0.5 * (tail.1 + head.1),
+                        if g > 0.0 { 1.0 / g } else { 0.0 },
+                    )
+                }
+                Some(m) => at(m, origin[i] + u[i]),
                 None => (c.g, c.push, if c.g > 0.0 { 1.0 / c.g } else { 0.0 }),
             };
             let bb = c
@@ -1465,7 +1478,7 @@ mod tests {
                     for step in 0..3000 {
                         let w = step as f64 * 2e-3;
                         let (a, b) = (w.sin() * 0.6, w.cos() * 0.6);
-                        let (u, v, stuck, sums) = reference_step(&s, &origin, a, b);
+                        let (u, v, stuck, sums) = reference_step(&s, &origin, p.length, a, b);
                         let before = s.stuck.clone();
                         let kernel = s.step(a, b);
                         let wrong = sums.differences(&kernel);

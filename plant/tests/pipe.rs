@@ -136,6 +136,81 @@ fn each_node_feels_the_friction_at_its_position() {
 }
 
 #[test]
+fn node_0_of_a_periodic_body_feels_both_ends_of_the_body() {
+    // Node 0 stands for the half cells at the tail (X = 1.0) and at the head (X = 1.25, one body
+    // length ahead); the patch covers the head's place only.
+    let s = body(
+        0.1,
+        6.0,
+        "[pipe]\nstart = 1.0\n[[pipe.features]]\nkind = \"patch\"\nfrom = 1.2\nto = 1.3\neps = 0.7\nn_f = 0.3\n",
+    );
+    let plant = crawler_plant::Plant::new(s.plant.clone(), 0.0).unwrap();
+    let friction = plant.node_friction();
+    // the mean eps, and the n_F of the mean eps n_F: (0.1 * 0.5 + 0.7 * 0.3) / 2 / 0.4
+    let (eps, n_f) = friction[0];
+    assert!((eps - 0.4).abs() < 1e-15, "node 0's eps {eps}");
+    assert!((n_f - 0.325).abs() < 1e-15, "node 0's n_F {n_f}");
+    // the other nodes feel their own place only
+    let dx = plant.discretisation().dx;
+    for (i, &(eps, _)) in friction.iter().enumerate().skip(1) {
+        let x = 1.0 + i as f64 * dx;
+        assert_eq!(eps, if x >= 1.2 { 0.7 } else { 0.1 }, "node {i} at X = {x}");
+    }
+    // a free body has no seam: its node 0 is at the tail's cell centre only
+    let mut free = s.plant.clone();
+    free.boundary = crawler_plant::params::Boundary::Free;
+    let plant = crawler_plant::Plant::new(free, 0.0).unwrap();
+    assert_eq!(plant.node_friction()[0], (0.1, 0.5));
+}
+
+/// Displacement of the centre of mass (m) of the paper's crawler (1 m, at resonance, eps = 0.1)
+/// at 5 s on `cells` cells, its head starting on a patch of eps = 0.5 at [1, 1.5) m.
+fn patch_crossing(cells: usize) -> f64 {
+    let s = custom(
+        0.1,
+        0.5,
+        TAU,
+        1.0,
+        1.0,
+        cells,
+        10.0,
+        "[pipe]\n[[pipe.features]]\nkind = \"patch\"\nfrom = 1.0\nto = 1.5\neps = 0.5\n",
+    );
+    let mut slave = Slave::instantiate("pipe", s.plant.clone()).unwrap();
+    slave.enter_initialization_mode(0.0, None).unwrap();
+    slave.set_wave(s.wave).unwrap();
+    slave.exit_initialization_mode().unwrap();
+    let h = slave.plant().step_length();
+    for n in 0..slave.plant().discretisation().steps_until(5.0) {
+        assert_eq!(slave.do_step(n as f64 * h, h), StepStatus::Ok);
+    }
+    // the run ends at the first communication point at or after 5 s, which depends on the grid:
+    // back to 5 s with the centre of mass's speed
+    let p = slave.plant();
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+    mean(p.displacement()) - (p.time() - 5.0) * mean(p.velocity())
+}
+
+#[test]
+fn a_patch_crossing_converges_at_second_order() {
+    // The body is where its cells are: with node 0 at the tail's place only, a periodic body
+    // would sit half a cell behind (a centre of mass 1.3 mm short at 512 cells, converging at
+    // first order).
+    let reference = patch_crossing(2048);
+    let (coarse, fine) = (patch_crossing(128), patch_crossing(512));
+    let (e_coarse, e_fine) = ((coarse - reference).abs(), (fine - reference).abs());
+    assert!(
+        e_fine < 1e-4,
+        "512 cells: {fine} m against {reference} m at 2048"
+    );
+    assert!(
+        e_coarse > 8.0 * e_fine,
+        "errors {e_coarse:e} m at 128 cells and {e_fine:e} m at 512: not second order"
+    );
+    assert!(reference > 0.3, "the crawler moved only {reference} m");
+}
+
+#[test]
 fn controllers_are_told_nominal_friction_unless_the_pipe_is_disclosed() {
     let hidden = body(
         0.3,
