@@ -26,8 +26,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{finite, non_negative, positive, within, ParamError};
 
-/// Largest number of constant pieces a compiled map may have.
+/// Largest number of constant pieces a compiled map may have (all features together).
 pub const MAX_PIECES: usize = 1 << 20;
+
+/// Largest number of features a pipe may have.
+pub const MAX_FEATURES: usize = 1024;
+
+/// Largest number of random samples of all textures together (two numbers each).
+pub const MAX_SAMPLES: usize = 1 << 22;
 
 /// Default resolution of ramps and textures, m.
 pub const DEFAULT_RESOLUTION: f64 = 1e-3;
@@ -162,6 +168,16 @@ impl Pipe {
             }
             (true, None) => {}
         }
+        if self.features.len() > MAX_FEATURES {
+            return Err(ParamError::new(
+                "pipe.features",
+                format!("{} features", self.features.len()),
+                format!("at most {MAX_FEATURES} features"),
+            ));
+        }
+        // pieces and texture samples of all features together (each also bounded on its own
+        // below), so that a map's memory and the time to build it stay bounded
+        let (mut pieces, mut samples) = (0.0, 0.0);
         for (i, f) in self.features.iter().enumerate() {
             let name = |field: &str| format!("pipe.features[{i}].{field}");
             let (from, to) = f.range();
@@ -240,6 +256,34 @@ impl Pipe {
                     ),
                 ));
             }
+            pieces += match f {
+                Feature::Patch { .. } => 1.0,
+                _ => ((to - from) / self.resolution).ceil(),
+            };
+            if let Feature::Texture { correlation, .. } = *f {
+                samples += ((to - from) / (correlation / 8.0)).ceil() + 1.0;
+            }
+        }
+        if pieces > MAX_PIECES as f64 {
+            return Err(ParamError::new(
+                "pipe.features",
+                format!("{pieces:.0} pieces in all"),
+                format!(
+                    "at most {MAX_PIECES} pieces in all (a patch is one; a ramp or texture is held \
+                     constant every resolution = {} m, (to - from) / resolution pieces)",
+                    self.resolution
+                ),
+            ));
+        }
+        if samples > MAX_SAMPLES as f64 {
+            return Err(ParamError::new(
+                "pipe.features",
+                format!("{samples:.0} texture samples in all"),
+                format!(
+                    "at most {MAX_SAMPLES} texture samples in all (a texture is sampled every \
+                     correlation / 8 from `from` to `to`)"
+                ),
+            ));
         }
         Ok(())
     }
@@ -281,52 +325,62 @@ impl Pipe {
         }
         edges.sort_by(f64::total_cmp);
         edges.dedup();
-        let value_at = |x: f64| -> (f64, f64) {
-            let (mut e, mut n) = (eps, n_f);
-            for (f, tex) in self.features.iter().zip(&textures) {
-                let (from, to) = f.range();
-                if !(from..to).contains(&x) {
-                    continue;
+        // Each interval between edges takes the value at its midpoint (at its start where the
+        // midpoint rounds onto its end: an interval one ulp wide); the features are applied in
+        // order, each to the intervals whose point it covers (found by binary search, so a
+        // feature costs the intervals it covers).
+        let points: Vec<f64> = edges
+            .windows(2)
+            .map(|w| {
+                let mid = 0.5 * (w[0] + w[1]);
+                if mid < w[1] {
+                    mid
+                } else {
+                    w[0]
                 }
+            })
+            .collect();
+        let mut values = vec![(eps, n_f); points.len()];
+        for (f, tex) in self.features.iter().zip(&textures) {
+            let (from, to) = f.range();
+            let covered =
+                points.partition_point(|&x| x < from)..points.partition_point(|&x| x < to);
+            for (&x, (e, n)) in points[covered.clone()].iter().zip(&mut values[covered]) {
                 match *f {
                     Feature::Patch {
                         eps: pe, n_f: pn, ..
                     } => {
-                        e = pe.unwrap_or(e);
-                        n = pn.unwrap_or(n);
+                        *e = pe.unwrap_or(*e);
+                        *n = pn.unwrap_or(*n);
                     }
                     Feature::Ramp {
                         eps: re, n_f: rn, ..
                     } => {
                         let w = (x - from) / (to - from);
                         if let Some([a, b]) = re {
-                            e = a + w * (b - a);
+                            *e = a + w * (b - a);
                         }
                         if let Some([a, b]) = rn {
-                            n = a + w * (b - a);
+                            *n = a + w * (b - a);
                         }
                     }
                     Feature::Texture { .. } => {
                         let t = tex.as_ref().expect("texture samples");
                         let (de, dn) = t.at(x);
-                        e += de;
-                        n += dn;
+                        *e += de;
+                        *n += dn;
                     }
                 }
-                e = e.max(0.0);
-                n = n.clamp(0.0, 1.0);
+                *e = e.max(0.0);
+                *n = n.clamp(0.0, 1.0);
             }
-            (e, n)
-        };
+        }
         let mut pieces: Vec<Piece> = Vec::with_capacity(edges.len());
-        for w in edges.windows(2) {
-            // the midpoint of an interval one ulp wide rounds onto its end: take its start then
-            let mid = 0.5 * (w[0] + w[1]);
-            let (e, n) = value_at(if mid < w[1] { mid } else { w[0] });
+        for (&start, &(e, n)) in edges.iter().zip(&values) {
             match pieces.last() {
                 Some(last) if last.eps == e && last.n_f == n => {}
                 _ => pieces.push(Piece {
-                    start: w[0],
+                    start,
                     eps: e,
                     n_f: n,
                 }),
@@ -592,6 +646,176 @@ mod tests {
             e.iter().zip(&e[lag..]).map(|(a, b)| a * b).sum::<f64>() / (e.len() - lag) as f64 / var;
         assert!((c - (-1.0f64).exp()).abs() < 0.1, "correlation {c}");
         assert!(a.pieces.iter().all(|p| p.n_f == 0.5));
+    }
+
+    /// The map's value on each interval between edges by the rule written out point by point:
+    /// every feature looked at for the interval's point, in order.
+    fn reference_values(pipe: &Pipe, eps: f64, n_f: f64, edges: &[f64]) -> Vec<(f64, f64)> {
+        let at = |x: f64| {
+            let (mut e, mut n) = (eps, n_f);
+            for f in &pipe.features {
+                let (from, to) = f.range();
+                if !(from <= x && x < to) {
+                    continue;
+                }
+                match *f {
+                    Feature::Patch {
+                        eps: pe, n_f: pn, ..
+                    } => {
+                        e = pe.unwrap_or(e);
+                        n = pn.unwrap_or(n);
+                    }
+                    Feature::Ramp {
+                        eps: re, n_f: rn, ..
+                    } => {
+                        let w = (x - from) / (to - from);
+                        if let Some([a, b]) = re {
+                            e = a + w * (b - a);
+                        }
+                        if let Some([a, b]) = rn {
+                            n = a + w * (b - a);
+                        }
+                    }
+                    Feature::Texture {
+                        eps_std,
+                        n_f_std,
+                        correlation,
+                        seed,
+                        ..
+                    } => {
+                        let t = TextureSamples::new(from, to, eps_std, n_f_std, correlation, seed);
+                        let (de, dn) = t.at(x);
+                        e += de;
+                        n += dn;
+                    }
+                }
+                e = e.max(0.0);
+                n = n.clamp(0.0, 1.0);
+            }
+            (e, n)
+        };
+        edges
+            .windows(2)
+            .map(|w| {
+                let mid = 0.5 * (w[0] + w[1]);
+                at(if mid < w[1] { mid } else { w[0] })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn overlapping_features_compile_to_the_point_by_point_rule() {
+        let pipe = Pipe {
+            resolution: 0.05,
+            features: vec![
+                Feature::Texture {
+                    from: -1.0,
+                    to: 2.0,
+                    eps_std: 0.3,
+                    n_f_std: 0.2,
+                    correlation: 0.2,
+                    seed: 4,
+                },
+                patch(0.5, 0.9, 0.0),
+                Feature::Ramp {
+                    from: 0.7,
+                    to: 1.4,
+                    eps: Some([0.2, 0.6]),
+                    n_f: None,
+                },
+                patch(1.0, 1.0f64.next_up(), 0.9),
+                Feature::Texture {
+                    from: 1.2,
+                    to: 3.0,
+                    eps_std: 0.1,
+                    n_f_std: 0.0,
+                    correlation: 0.3,
+                    seed: 5,
+                },
+                Feature::Patch {
+                    from: 2.5,
+                    to: 2.6,
+                    eps: None,
+                    n_f: Some(1.0),
+                },
+            ],
+            ..Default::default()
+        };
+        pipe.validate().unwrap();
+        let (eps, n_f) = (0.1, 0.5);
+        let m = pipe.compile(eps, n_f);
+        let mut edges: Vec<f64> = m.pieces.iter().map(|p| p.start).collect();
+        // every edge the features make, to test the value between each pair
+        for f in &pipe.features {
+            let (from, to) = f.range();
+            edges.extend([from, to]);
+            if !matches!(f, Feature::Patch { .. }) {
+                let n = ((to - from) / pipe.resolution).ceil() as usize;
+                edges.extend((1..n).map(|j| from + j as f64 * pipe.resolution));
+            }
+        }
+        edges.sort_by(f64::total_cmp);
+        edges.dedup();
+        let want = reference_values(&pipe, eps, n_f, &edges);
+        let mut clipped = 0;
+        for (w, &(e, n)) in edges.windows(2).zip(&want) {
+            assert_eq!(m.at(w[0]), (e, n), "[{}, {})", w[0], w[1]);
+            clipped += usize::from(e == 0.0 || n == 0.0 || n == 1.0);
+        }
+        assert!(clipped > 0, "the clipping is exercised");
+        assert_eq!(m.at(edges[0].next_down()), (eps, n_f));
+        assert_eq!(m.at(*edges.last().unwrap()), (eps, n_f));
+        assert_eq!(m.at(1.0), (0.9, m.at(1.0).1), "the one-ulp patch is kept");
+    }
+
+    #[test]
+    fn the_features_are_bounded_in_all() {
+        let texture = |i: usize, correlation: f64| Feature::Texture {
+            from: -500.0 + i as f64 * 1e-4,
+            to: 500.0 + i as f64 * 1e-4,
+            eps_std: 0.01,
+            n_f_std: 0.0,
+            correlation,
+            seed: i as u64,
+        };
+        // each texture alone is allowed (1e6 pieces of 1 mm), two together are not
+        let one = Pipe {
+            features: vec![texture(0, 1.0)],
+            ..Default::default()
+        };
+        one.validate().unwrap();
+        let two = Pipe {
+            features: vec![texture(0, 1.0), texture(1, 1.0)],
+            ..Default::default()
+        };
+        let e = two.validate().unwrap_err();
+        assert_eq!(e.field, "pipe.features");
+        assert!(e.to_string().contains("pieces in all"), "{e}");
+        // samples: each texture of 1e6 samples is allowed, five together are not
+        let coarse = |k| Pipe {
+            resolution: 1.0,
+            features: (0..k).map(|i| texture(i, 8e-3)).collect(),
+            ..Default::default()
+        };
+        coarse(4).validate().unwrap();
+        let e = coarse(5).validate().unwrap_err();
+        assert_eq!(e.field, "pipe.features");
+        assert!(e.to_string().contains("texture samples in all"), "{e}");
+        let many = Pipe {
+            features: (0..=MAX_FEATURES)
+                .map(|i| patch(i as f64, i as f64 + 0.5, 0.3))
+                .collect(),
+            ..Default::default()
+        };
+        let e = many.validate().unwrap_err();
+        assert_eq!(e.field, "pipe.features");
+        assert!(e.to_string().contains("1025 features"), "{e}");
+        let most = Pipe {
+            features: many.features[..MAX_FEATURES].to_vec(),
+            ..Default::default()
+        };
+        most.validate().unwrap();
+        assert_eq!(most.compile(0.1, 0.5).pieces.len(), 2 * MAX_FEATURES);
     }
 
     #[test]
