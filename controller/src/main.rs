@@ -224,7 +224,7 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
     let network = a.network.network()?;
     anyhow::ensure!(
         a.wait_timeout.is_finite() && a.wait_timeout > 0.0 && a.wait_timeout < 1e9,
-        "invalid --wait-timeout = {}: allowed a number of seconds > 0",
+        "invalid --wait-timeout = {:?}: allowed a number of seconds, 0 < wait-timeout < 1e9",
         a.wait_timeout
     );
     for (name, x) in [

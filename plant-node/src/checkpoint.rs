@@ -15,6 +15,10 @@ use crawler_plant::task::TaskTracker;
 const MAGIC: &[u8; 8] = b"CRWLCKPT";
 const VERSION: u32 = 3;
 
+/// Largest checkpoint file, bytes (a plant of the most cells with a long episode log is far
+/// smaller).
+pub const MAX_CHECKPOINT_BYTES: u64 = 1 << 30;
+
 /// A stopped run: the plant's full state at the start of communication step `state.macro_step`
 /// (no actuation for that step applied yet), and the run's bookkeeping.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -65,7 +69,7 @@ impl Checkpoint {
 
     /// Reads and checks a checkpoint (format, checksum, consistency of state and scenario).
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let bytes = std::fs::read(path)
+        let bytes = framing::read_at_most(path, MAX_CHECKPOINT_BYTES)
             .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
         Self::from_bytes(&bytes)
             .map_err(|e| anyhow::anyhow!("invalid checkpoint {}: {e:#}", path.display()))
@@ -75,7 +79,7 @@ impl Checkpoint {
     pub fn from_bytes(bytes: &[u8]) -> anyhow::Result<Self> {
         let c: Checkpoint = framing::decode(MAGIC, VERSION, "crawler checkpoint", bytes)?;
         crawler_protocol::validate_run_id(&c.run_id)?;
-        c.scenario.plant.validate()?;
+        c.scenario.validate()?;
         if c.state.params != c.scenario.plant {
             anyhow::bail!("the plant state does not belong to its scenario");
         }

@@ -120,7 +120,8 @@ fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
 fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
     anyhow::ensure!(
         x.is_finite() && x > 0.0 && x < 1e9,
-        "invalid --{name} = {x}: allowed a number of seconds > 0"
+        "invalid --{name} = {}: allowed a number of seconds, 0 < {name} < 1e9",
+        crawler_plant::error::number(x)
     );
     Ok(std::time::Duration::from_secs_f64(x))
 }
@@ -289,9 +290,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(a) => {
             let scenario = a.scenario.load()?;
             anyhow::ensure!(
-                a.seconds.is_finite() && a.seconds > 0.0,
-                "invalid --seconds = {}: allowed > 0",
-                a.seconds
+                a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0,
+                "invalid --seconds = {}: allowed a wall time in seconds, 0 < seconds <= 3600",
+                crawler_plant::error::number(a.seconds)
             );
             let r = crawler_plant_node::bench::bench(
                 &scenario,

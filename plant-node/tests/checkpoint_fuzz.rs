@@ -93,6 +93,65 @@ fn a_changed_number_behind_a_valid_checksum_is_read_as_that_number() {
     assert!(e.to_string().contains("past the last step"), "{e:#}");
 }
 
+#[test]
+fn a_well_formed_checkpoint_of_an_impossible_run_is_refused_naming_the_field() {
+    let refused = |c: &Checkpoint| {
+        Checkpoint::from_bytes(&c.to_bytes())
+            .unwrap_err()
+            .to_string()
+    };
+    let mut c = sample();
+    c.scenario.t_end = f64::NAN;
+    assert!(refused(&c).contains("numerics.t_end"), "{}", refused(&c));
+    let mut c = sample();
+    c.scenario.wave.omega = -1.0;
+    assert!(refused(&c).contains("wave.omega"), "{}", refused(&c));
+    let mut c = sample();
+    c.scenario.min_stick_periods = f64::NAN;
+    assert!(
+        refused(&c).contains("events.min_stick_periods"),
+        "{}",
+        refused(&c)
+    );
+    let mut c = sample();
+    c.scenario.name = "\u{1b}[31m".into();
+    assert!(
+        refused(&c).contains("control characters"),
+        "{}",
+        refused(&c)
+    );
+    let mut c = sample();
+    c.scenario.name = "x".repeat(100_000);
+    assert!(refused(&c).contains("invalid name"), "{}", refused(&c));
+    // finite numbers whose tension or energy is not
+    let mut c = sample();
+    c.state.u[0] = 1e308;
+    let e = refused(&c);
+    assert!(
+        e.contains("state.u[") && e.contains("finite tension"),
+        "{e}"
+    );
+    let mut c = sample();
+    c.state.v.iter_mut().for_each(|v| *v = 1e200);
+    assert!(refused(&c).contains("state.v"), "{}", refused(&c));
+    // bytes after the payload
+    let bytes = sample().to_bytes();
+    let mut payload = bytes[HEADER..].to_vec();
+    payload.push(0xc0);
+    let e = Checkpoint::from_bytes(&reframe(&bytes, &payload))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("1 bytes after its end"), "{e}");
+}
+
+#[test]
+fn a_file_of_unbounded_length_is_refused_not_read_to_the_end() {
+    let e = Checkpoint::load(std::path::Path::new("/dev/zero"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("larger than"), "{e}");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 600, ..ProptestConfig::default() })]
 

@@ -106,7 +106,7 @@ pub fn estimate(
                 coarse: c,
                 fine: f,
                 error,
-                relative_error: (f != 0.0).then(|| error / f.abs()),
+                relative_error: (f != 0.0 && error.is_finite()).then(|| error / f.abs()),
             }
         })
         .collect();
@@ -128,17 +128,25 @@ impl Convergence {
             "{:<30} {:>14} {:>14} {:>12} {:>9}\n",
             "metric", "N", "2N", "error", "relative"
         );
+        // a metric that is not a number (the mileage of a run with no power put in) is undefined
+        let number = |x: f64, digits: usize| {
+            if x.is_finite() {
+                format!("{x:.digits$e}")
+            } else {
+                "undefined".to_string()
+            }
+        };
         for m in &self.metrics {
             out += &format!(
-                "{:<30} {:>14.6e} {:>14.6e} {:>12.3e} {:>9}\n",
+                "{:<30} {:>14} {:>14} {:>12} {:>9}\n",
                 if m.unit.is_empty() {
                     m.name.to_string()
                 } else {
                     format!("{} {}", m.name, m.unit)
                 },
-                m.coarse,
-                m.fine,
-                m.error,
+                number(m.coarse, 6),
+                number(m.fine, 6),
+                number(m.error, 3),
                 m.relative_error
                     .map_or("-".to_string(), |r| format!("{:.3}%", 100.0 * r))
             );

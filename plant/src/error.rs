@@ -32,7 +32,7 @@ pub fn positive(field: &str, value: f64) -> Result<f64, ParamError> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(ParamError::new(field, value, "a finite number > 0"))
+        Err(ParamError::new(field, number(value), "a finite number > 0"))
     }
 }
 
@@ -41,7 +41,11 @@ pub fn non_negative(field: &str, value: f64) -> Result<f64, ParamError> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
-        Err(ParamError::new(field, value, "a finite number >= 0"))
+        Err(ParamError::new(
+            field,
+            number(value),
+            "a finite number >= 0",
+        ))
     }
 }
 
@@ -50,7 +54,7 @@ pub fn finite(field: &str, value: f64) -> Result<f64, ParamError> {
     if value.is_finite() {
         Ok(value)
     } else {
-        Err(ParamError::new(field, value, "a finite number"))
+        Err(ParamError::new(field, number(value), "a finite number"))
     }
 }
 
@@ -61,8 +65,19 @@ pub fn within(field: &str, value: f64, lo: f64, hi: f64) -> Result<f64, ParamErr
     } else {
         Err(ParamError::new(
             field,
-            value,
+            number(value),
             format!("{lo} <= {field} <= {hi}"),
         ))
+    }
+}
+
+/// `x` as text: as Rust writes it, or in exponent form where that would be long (`1e308` rather
+/// than its 309 digits).
+pub fn number(x: f64) -> String {
+    let plain = x.to_string();
+    if plain.len() > 24 {
+        format!("{x:e}")
+    } else {
+        plain
     }
 }

@@ -67,5 +67,31 @@ pub fn decode<T: DeserializeOwned>(
             "{what} checksum mismatch (truncated or corrupted)"
         )));
     }
-    rmp_serde::from_slice(payload).map_err(|e| FrameError(format!("{what} payload: {e}")))
+    let mut de = rmp_serde::Deserializer::new(std::io::Cursor::new(payload));
+    let value = T::deserialize(&mut de).map_err(|e| FrameError(format!("{what} payload: {e}")))?;
+    let read = de.position();
+    if read != payload.len() as u64 {
+        return Err(FrameError(format!(
+            "{what} payload: {} bytes after its end (another file appended?)",
+            payload.len() as u64 - read
+        )));
+    }
+    Ok(value)
+}
+
+/// Reads the file at `path` if it holds at most `limit` bytes (a device or a file of unbounded
+/// length is refused once `limit` bytes have been read, not read to the end).
+pub fn read_at_most(path: &std::path::Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?
+        .take(limit + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("larger than {limit} bytes, the most this file may hold"),
+        ));
+    }
+    Ok(bytes)
 }

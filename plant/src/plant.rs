@@ -560,6 +560,7 @@ impl Plant {
                 return Err(ParamError::new(format!("{name}[{i}]"), x, "finite numbers"));
             }
         }
+        check_magnitudes(state, &self.params, self.disc.dx)?;
         crate::error::finite("state.t0", state.t0)?;
         crate::error::finite("state.pending_work", state.pending_work)?;
         crate::error::finite("state.velocity_sum", state.velocity_sum)?;
@@ -617,4 +618,42 @@ impl Plant {
         plant.set_state(state)?;
         Ok(plant)
     }
+}
+
+/// The state's numbers are finite, and so are the quantities a step works out from them: every
+/// face's elastic tension `A_c E (u_{i+1} - u_i) / dx` (N), the sum of `|u|` (m) and of `v^2`
+/// (m^2/s^2) over the nodes (a displacement of 1e308 m is finite, its tension is not).
+fn check_magnitudes(state: &PlantState, params: &PlantParams, dx: f64) -> Result<(), ParamError> {
+    let stiffness = params.body.area * params.body.youngs_modulus / dx;
+    let n = state.u.len();
+    let faces = match params.boundary {
+        crate::params::Boundary::Periodic => n,
+        crate::params::Boundary::Free => n - 1,
+    };
+    for i in 0..faces {
+        let tension = stiffness * (state.u[(i + 1) % n] - state.u[i]);
+        if !tension.is_finite() {
+            return Err(ParamError::new(
+                format!("state.u[{}]", (i + 1) % n),
+                state.u[(i + 1) % n],
+                format!(
+                    "displacements whose differences give a finite tension (u[{i}] = {:e} m, A_c E / dx = {stiffness:e} N/m)",
+                    state.u[i]
+                ),
+            ));
+        }
+    }
+    for (name, total) in [
+        ("state.u", state.u.iter().map(|x| x.abs()).sum::<f64>()),
+        ("state.v", state.v.iter().map(|x| x * x).sum::<f64>()),
+    ] {
+        if !total.is_finite() {
+            return Err(ParamError::new(
+                name,
+                "values too large to sum",
+                "values whose sum (of |u|, of v^2) over the nodes is finite",
+            ));
+        }
+    }
+    Ok(())
 }

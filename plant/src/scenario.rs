@@ -327,9 +327,16 @@ impl Scenario {
 
     /// Loads a scenario file and applies overrides.
     pub fn from_file(path: &Path, overrides: &Overrides) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| ScenarioError::Io {
+        let io = |cause| ScenarioError::Io {
             path: path.display().to_string(),
             cause,
+        };
+        let bytes = crate::framing::read_at_most(path, MAX_SCENARIO_BYTES).map_err(io)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 text ({e})"),
+            ))
         })?;
         Self::from_toml(&text, &path.display().to_string(), overrides)
     }
@@ -410,18 +417,10 @@ impl RawScenario {
         }
 
         if let Some(name) = self.name.as_deref() {
-            let most = crawler_protocol::MAX_SCENARIO_NAME_LEN;
-            if name.len() > most {
-                return Err(ParamError::new(
-                    "name",
-                    format!(
-                        "{:?}... ({} bytes)",
-                        name.chars().take(24).collect::<String>(),
-                        name.len()
-                    ),
-                    format!("at most {most} bytes (it travels in the plant's final report)"),
-                ));
-            }
+            check_name(name)?;
+        }
+        if let Some(text) = self.description.as_deref() {
+            check_description(text)?;
         }
         let body = Body {
             area: self.body.area,
@@ -499,7 +498,48 @@ impl RawScenario {
             pipe: self.pipe,
             numerics,
         };
+        let scenario = Scenario {
+            name: self.name.unwrap_or_else(|| "unnamed".into()),
+            description: self.description.unwrap_or_default(),
+            plant,
+            wave,
+            t_end,
+            task: self.task,
+            limits: self.limits,
+            min_stick_periods,
+        };
+        // the wave is the file's [actuation] section
+        scenario.validate().map_err(|mut e| {
+            if let Some(rest) = e.field.strip_prefix("wave.") {
+                e.field = format!("actuation.{rest}");
+            }
+            e
+        })?;
+        Ok(scenario)
+    }
+}
+
+impl Scenario {
+    /// Validates a whole scenario, also one that was not read from a scenario file (a
+    /// checkpoint's): the plant, the wave on the body, the run's length against the
+    /// discretisation, the task and the limits.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        check_name(&self.name)?;
+        check_description(&self.description)?;
+        let plant = &self.plant;
         plant.validate()?;
+        let t_end = positive("numerics.t_end", self.t_end)?;
+        let min_stick_periods = non_negative("events.min_stick_periods", self.min_stick_periods)?;
+        if min_stick_periods != plant.numerics.min_stick_periods {
+            return Err(ParamError::new(
+                "events.min_stick_periods",
+                min_stick_periods,
+                format!(
+                    "the plant's numerics.min_stick_periods = {}",
+                    plant.numerics.min_stick_periods
+                ),
+            ));
+        }
         let d = plant.discretisation()?;
         let h = d.step;
         let longest = crate::params::MAX_RUN_STEPS as f64 * d.dt;
@@ -516,28 +556,73 @@ impl RawScenario {
         if h > t_end {
             return Err(ParamError::new(
                 "numerics.step",
-                numerics.step,
+                plant.numerics.step,
                 format!(
                     "a communication step no longer than numerics.t_end = {t_end} s (it is rounded to H = {h:e} s, a whole number of internal steps)"
                 ),
             ));
         }
-        wave.validate_for_body(length, plant.numerics.cells, plant.boundary)?;
+        self.wave
+            .validate_for_body(plant.length, plant.numerics.cells, plant.boundary)?;
         check_run_length(t_end, &d, plant.numerics.block, plant.numerics.settle)?;
         self.task.validate()?;
         self.limits.validate()?;
-        Ok(Scenario {
-            name: self.name.unwrap_or_else(|| "unnamed".into()),
-            description: self.description.unwrap_or_default(),
-            plant,
-            wave,
-            t_end,
-            task: self.task,
-            limits: self.limits,
-            min_stick_periods,
-        })
+        Ok(())
     }
 }
+
+/// The scenario's name: at most [`crawler_protocol::MAX_SCENARIO_NAME_LEN`] bytes (it travels
+/// in the plant's final report), no control characters (it is printed).
+fn check_name(name: &str) -> Result<(), ParamError> {
+    let most = crawler_protocol::MAX_SCENARIO_NAME_LEN;
+    check_text(
+        "name",
+        name,
+        most,
+        format!("at most {most} bytes (it travels in the plant's final report)"),
+    )
+}
+
+/// The scenario's description: one line of at most [`MAX_DESCRIPTION_LEN`] bytes.
+fn check_description(text: &str) -> Result<(), ParamError> {
+    check_text(
+        "description",
+        text,
+        MAX_DESCRIPTION_LEN,
+        format!("one line of at most {MAX_DESCRIPTION_LEN} bytes"),
+    )
+}
+
+/// `text` holds at most `most` bytes (else the error says `allowed`) and no control characters
+/// (escape sequences, line breaks).
+fn check_text(field: &str, text: &str, most: usize, allowed: String) -> Result<(), ParamError> {
+    if text.len() > most {
+        return Err(ParamError::new(
+            field,
+            format!(
+                "{:?}... ({} bytes)",
+                text.chars().take(24).collect::<String>(),
+                text.len()
+            ),
+            allowed,
+        ));
+    }
+    match text.chars().position(char::is_control) {
+        None => Ok(()),
+        Some(at) => Err(ParamError::new(
+            field,
+            format!("{text:?}"),
+            format!("text without control characters (character {at} is one)"),
+        )),
+    }
+}
+
+/// Largest scenario file, bytes (a [`MAX_FEATURES`](crate::pipe::MAX_FEATURES)-feature pipe
+/// takes about 100 KB).
+pub const MAX_SCENARIO_BYTES: u64 = 16 << 20;
+
+/// Longest scenario description, bytes.
+pub const MAX_DESCRIPTION_LEN: usize = 4096;
 
 /// The run to `t_end` (s) on the discretisation `d` must close the first steady averaging block:
 /// the steady metrics average whole blocks of `block` seconds (forcing periods) counted from

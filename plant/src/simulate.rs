@@ -467,7 +467,11 @@ impl Report {
         );
         out += &format!("  velocity V        {:+.6e} m/s\n", self.velocity);
         out += &format!("  power P           {:.6e} W\n", self.power);
-        out += &format!("  mileage M         {:.6e} m/J\n", self.mileage);
+        out += &if self.mileage.is_finite() {
+            format!("  mileage M         {:.6e} m/J\n", self.mileage)
+        } else {
+            "  mileage M         undefined (no power put in: M = V / P)\n".to_string()
+        };
         out += &format!("  max stress        {:.6e} Pa\n", self.max_stress);
         out += &format!("  max strain        {:.6e}\n", self.max_strain);
         out += &format!("  stuck fraction    {:.4}\n", self.stuck_fraction);

@@ -145,7 +145,41 @@ fn a_wave_that_does_not_fit_an_explicit_body_is_refused() {
         .replace("# length = 1.0", "length = 1.0")
         .replace("k = 6.283185307179586", "k = 9.42477796076938");
     let e = load(&text).unwrap_err().to_string();
-    assert!(e.contains("wave.k") && e.contains("whole number"), "{e}");
+    // named as the file has it, not as the plant's wave
+    assert!(
+        e.contains("invalid actuation.k = ") && e.contains("whole number"),
+        "{e}"
+    );
+}
+
+#[test]
+fn names_and_descriptions_with_control_characters_are_refused() {
+    for (field, bad) in [
+        ("name", "name = \"\\u001b[31mred\""),
+        ("description", "description = \"two\\nlines\""),
+    ] {
+        let text = PAPER_TOML.replace(&format!("{field} = "), &format!("{bad}\n#{field} = "));
+        let e = load(&text).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("invalid {field} = ")) && e.contains("control characters"),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn a_file_of_unbounded_length_is_refused_not_read_to_the_end() {
+    let e = Scenario::from_file(std::path::Path::new("/dev/zero"), &Overrides::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("/dev/zero") && e.contains("larger than"), "{e}");
+}
+
+#[test]
+fn huge_numbers_are_written_in_exponent_form() {
+    let text = PAPER_TOML.replace("viscous = 1.0 ", "viscous = -1e300 ");
+    let e = load(&text).unwrap_err().to_string();
+    assert!(e.contains("invalid friction.viscous = -1e300:"), "{e}");
 }
 
 #[test]
@@ -232,7 +266,7 @@ fn boundary_and_pipe_sections_are_read_and_checked() {
     assert!((s.plant.length - 0.7).abs() < 1e-15);
     let periodic = free.replace("boundary = \"free\"\n", "");
     let e = load(&periodic).unwrap_err().to_string();
-    assert!(e.contains("wave.k") && e.contains("free"), "{e}");
+    assert!(e.contains("actuation.k") && e.contains("free"), "{e}");
     let bad = free.replace("boundary = \"free\"", "boundary = \"clamped\"");
     let e = load(&bad).unwrap_err().to_string();
     assert!(e.contains("clamped") && e.contains("line"), "{e}");

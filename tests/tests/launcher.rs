@@ -275,6 +275,27 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
         "--credential",
     );
     check("crawler-bridge", &["record", "--every", "0"], "--every");
+    // times too long for a clock (they panicked turning into a Duration), written as given
+    check(
+        "crawler-bridge",
+        &["record", "--idle-timeout", "1e300"],
+        "invalid --idle-timeout = 1e300: allowed",
+    );
+    check(
+        "crawler",
+        &["compare", "--run-timeout", "1e300"],
+        "invalid --run-timeout = 1e300: allowed",
+    );
+    check(
+        "crawler-plant",
+        &["run", "--wait-timeout", "1e300"],
+        "invalid --wait-timeout = 1e300: allowed",
+    );
+    check(
+        "crawler-plant",
+        &["bench", "--seconds", "1e308"],
+        "invalid --seconds = 1e308: allowed",
+    );
 }
 
 #[test]
