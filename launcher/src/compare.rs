@@ -72,16 +72,16 @@ pub struct CompareArgs {
     #[arg(long, default_value = "out/compare")]
     out_dir: PathBuf,
     /// End time of every run, s (the task usually ends it earlier).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 60.0)]
     t_end: f64,
     /// Cells of every plant (default: each scenario's own; fewer for a quick look).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     cells: Option<i64>,
     /// Record the fields of every K-th step.
     #[arg(long, default_value_t = 16)]
     every: u64,
     /// Longest wall time of one run, s.
-    #[arg(long, default_value_t = 900.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 900.0)]
     run_timeout: f64,
     /// More arguments for every controller (after `--`), e.g. `-- --reflex stick_gain=0.2`.
     #[arg(last = true)]

@@ -63,10 +63,10 @@ struct RunArgs {
     #[arg(long)]
     run_id: Option<String>,
     /// End time, s (default: the scenario's).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     t_end: Option<f64>,
     /// Number of cells (default: the scenario's).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     cells: Option<i64>,
     /// Task mode: the run ends when the body has travelled the task's distance (success) or
     /// spent its energy (failure).

@@ -44,6 +44,29 @@ impl Body {
         positive("body.area", self.area)?;
         positive("body.density", self.density)?;
         positive("body.youngs_modulus", self.youngs_modulus)?;
+        // and what the plant works out of them: each positive number can be, their product or
+        // quotient overflow to infinity or vanish
+        let stiffness = self.stiffness();
+        if !(stiffness.is_finite() && stiffness > 0.0) {
+            return Err(ParamError::new(
+                "body.area",
+                crate::error::number(self.area),
+                format!(
+                    "an area whose axial stiffness A_c E is a finite number > 0 (E = {} Pa gives {stiffness:e} N)",
+                    crate::error::number(self.youngs_modulus)
+                ),
+            ));
+        }
+        let c = self.wave_speed();
+        if !(c.is_finite() && c > 0.0) {
+            return Err(ParamError::new(
+                "body.density",
+                crate::error::number(self.density),
+                format!(
+                    "a density whose wave speed sqrt(A_c E / rho) is a finite number > 0 (A_c E = {stiffness:e} N gives {c:e} m/s)"
+                ),
+            ));
+        }
         Ok(())
     }
 }

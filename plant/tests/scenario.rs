@@ -316,3 +316,27 @@ fn a_name_longer_than_the_report_carries_is_refused_by_field_and_length() {
         "{e}"
     );
 }
+
+#[test]
+fn a_body_whose_stiffness_or_wave_speed_overflows_is_named() {
+    for (from, to, field) in [
+        (
+            "area = 1.0e-4 ",
+            "area = 1e308 ",
+            "invalid body.area = 1e308: allowed an area whose axial stiffness",
+        ),
+        (
+            "youngs_modulus = 140e3 ",
+            "youngs_modulus = 5e-324 ",
+            "invalid body.area",
+        ),
+        (
+            "density = 0.1 ",
+            "density = 1e-308 ",
+            "invalid body.density = 1e-308: allowed a density whose wave speed",
+        ),
+    ] {
+        let e = load(&PAPER_TOML.replace(from, to)).unwrap_err().to_string();
+        assert!(e.contains(field), "{to}: {e}");
+    }
+}

@@ -275,6 +275,12 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
         "--credential",
     );
     check("crawler-bridge", &["record", "--every", "0"], "--every");
+    // a negative number is a value (not a flag the launcher suggests passing on with `--`)
+    check(
+        "crawler",
+        &["run", "--t-end", "-1"],
+        "--t-end (numerics.t_end) = -1: allowed",
+    );
     // times too long for a clock (they panicked turning into a Duration), written as given
     check(
         "crawler-bridge",
