@@ -145,6 +145,49 @@ fn a_well_formed_checkpoint_of_an_impossible_run_is_refused_naming_the_field() {
 }
 
 #[test]
+fn metric_windows_that_disagree_with_the_clock_are_refused() {
+    // a plant with no transient, past a few closed blocks: every window holds steps
+    let s = Scenario::paper();
+    let mut params = s.plant.clone();
+    params.numerics.settle = 0.0;
+    let mut plant = Plant::new(params, 0.0).unwrap();
+    plant.set_wave(s.wave).unwrap();
+    for _ in 0..300 {
+        plant.advance().unwrap();
+    }
+    let state = plant.state();
+    let m = &state.metrics;
+    assert!(m.steady.steps > 0 && m.run.steps > 0 && m.block.steps > 0);
+    Plant::from_state(&state).unwrap();
+    let refused = |change: &dyn Fn(&mut crawler_plant::plant::PlantState), field: &str| {
+        let mut bad = state.clone();
+        change(&mut bad);
+        let e = Plant::from_state(&bad).unwrap_err();
+        assert_eq!(e.field, field, "{e}");
+    };
+    // windows emptied of steps but not of their sums (the report divided by the wrong count)
+    refused(
+        &|b| b.metrics.steady.steps = 0,
+        "state.metrics.steady.steps",
+    );
+    refused(&|b| b.metrics.run.steps = 0, "state.metrics.run.steps");
+    // a step more or less than the window's time span
+    refused(
+        &|b| b.metrics.steady.steps += 1,
+        "state.metrics.steady.steps",
+    );
+    refused(&|b| b.metrics.block.steps -= 1, "state.metrics.block.steps");
+    // the closed and open blocks hold every step taken
+    refused(
+        &|b| {
+            b.metrics.all.steps -= 1;
+            b.metrics.all.start += plant.discretisation().dt;
+        },
+        "state.metrics.all.steps",
+    );
+}
+
+#[test]
 fn a_file_of_unbounded_length_is_refused_not_read_to_the_end() {
     let e = Checkpoint::load(std::path::Path::new("/dev/zero"))
         .unwrap_err()

@@ -80,6 +80,48 @@ impl Sums {
         Ok(())
     }
 
+    /// A span of `steps` internal steps of `dt` seconds, each starting at `t0 + j dt` (so
+    /// `end - start = steps dt` to round-off); `closed`: a window made of whole blocks, which holds
+    /// nothing while it holds no step (the open block can hold a muscle-force jump's work or an
+    /// episode before its first step).
+    pub fn validate_span(
+        &self,
+        name: &str,
+        dt: f64,
+        closed: bool,
+    ) -> Result<(), crate::error::ParamError> {
+        use crate::error::ParamError;
+        if self.steps == 0 {
+            let empty = Sums {
+                start: self.start,
+                end: self.end,
+                ..Sums::empty(self.start)
+            };
+            if closed && *self != empty {
+                return Err(ParamError::new(
+                    format!("{name}.steps"),
+                    0,
+                    "steps > 0 for a window with sums in it (an empty window sums to zero)",
+                ));
+            }
+            return Ok(());
+        }
+        let length = self.steps as f64 * dt;
+        let tolerance =
+            16.0 * f64::EPSILON * (self.start.abs() + self.end.abs() + length) + 1e-12 * dt;
+        if ((self.end - self.start) - length).abs() > tolerance {
+            return Err(ParamError::new(
+                format!("{name}.steps"),
+                self.steps,
+                format!(
+                    "the steps of dt = {dt:e} s from start = {} s to end = {} s",
+                    self.start, self.end
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// An empty span starting at `start` seconds.
     pub fn empty(start: f64) -> Self {
         Self {
@@ -282,6 +324,40 @@ impl MetricsTracker {
         self.steady.validate("state.metrics.steady")?;
         self.run.validate("state.metrics.run")?;
         self.all.validate("state.metrics.all")
+    }
+
+    /// The windows agree with the plant's clock: each spans its steps of `dt` (s), and the closed
+    /// blocks and the open one hold the `steps` internal steps taken since the tracker began.
+    pub fn validate_steps(&self, dt: f64, steps: u64) -> Result<(), crate::error::ParamError> {
+        self.block.validate_span("state.metrics.block", dt, false)?;
+        self.steady
+            .validate_span("state.metrics.steady", dt, true)?;
+        self.run.validate_span("state.metrics.run", dt, true)?;
+        self.all.validate_span("state.metrics.all", dt, true)?;
+        let counted = self.all.steps.checked_add(self.block.steps);
+        if counted != Some(steps) {
+            return Err(crate::error::ParamError::new(
+                "state.metrics.all.steps",
+                self.all.steps,
+                format!(
+                    "the steps taken ({steps}) less the open block's ({})",
+                    self.block.steps
+                ),
+            ));
+        }
+        for (name, window) in [("steady", &self.steady), ("run", &self.run)] {
+            if window.steps > self.all.steps {
+                return Err(crate::error::ParamError::new(
+                    format!("state.metrics.{name}.steps"),
+                    window.steps,
+                    format!(
+                        "at most the steps of all closed blocks ({})",
+                        self.all.steps
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Starts a block sequence at `origin` with blocks of `block_len` s and a transient of `settle` s.

@@ -576,6 +576,7 @@ impl Plant {
         }
         state.events.validate(n)?;
         state.metrics.validate()?;
+        state.metrics.validate_steps(self.disc.dt, state.step)?;
         if state.step != state.macro_step.saturating_mul(self.disc.substeps) {
             return Err(ParamError::new(
                 "state.step",
