@@ -95,3 +95,13 @@ pub fn read_at_most(path: &std::path::Path, limit: u64) -> std::io::Result<Vec<u
     }
     Ok(bytes)
 }
+
+/// [`read_at_most`] for a text file: its bytes as UTF-8.
+pub fn read_text_at_most(path: &std::path::Path, limit: u64) -> std::io::Result<String> {
+    String::from_utf8(read_at_most(path, limit)?).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text ({e})"),
+        )
+    })
+}

@@ -29,6 +29,7 @@ pub mod metrics;
 pub mod model_description;
 pub mod node_array;
 mod node_friction;
+pub mod pair;
 pub mod params;
 pub mod pipe;
 pub mod plant;

@@ -70,8 +70,10 @@ pub enum Feature {
         /// End, m.
         to: f64,
         /// `[eps at from, eps at to]` (unchanged if absent).
+        #[serde(default, deserialize_with = "crate::pair::optional_pair")]
         eps: Option<[f64; 2]>,
         /// `[n_F at from, n_F at to]` (unchanged if absent).
+        #[serde(default, deserialize_with = "crate::pair::optional_pair")]
         n_f: Option<[f64; 2]>,
     },
     /// A seeded random texture added on `[from, to)`.

@@ -189,8 +189,10 @@ impl Task {
 #[serde(deny_unknown_fields, default)]
 pub struct Limits {
     /// `[omega_min, omega_max]`, rad/s.
+    #[serde(deserialize_with = "crate::pair::pair")]
     pub omega: [f64; 2],
     /// `[k_min, k_max]`, rad/m.
+    #[serde(deserialize_with = "crate::pair::pair")]
     pub k: [f64; 2],
     /// Largest muscle-force amplitude, N.
     pub f0_max: f64,
@@ -327,17 +329,13 @@ impl Scenario {
 
     /// Loads a scenario file and applies overrides.
     pub fn from_file(path: &Path, overrides: &Overrides) -> Result<Self, ScenarioError> {
-        let io = |cause| ScenarioError::Io {
-            path: path.display().to_string(),
-            cause,
-        };
-        let bytes = crate::framing::read_at_most(path, MAX_SCENARIO_BYTES).map_err(io)?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            io(std::io::Error::new(
-                std::io::ErrorKind::InvalidData,
-                format!("not UTF-8 text ({e})"),
-            ))
-        })?;
+        let text =
+            crate::framing::read_text_at_most(path, MAX_SCENARIO_BYTES).map_err(|cause| {
+                ScenarioError::Io {
+                    path: path.display().to_string(),
+                    cause,
+                }
+            })?;
         Self::from_toml(&text, &path.display().to_string(), overrides)
     }
 

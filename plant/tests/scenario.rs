@@ -340,3 +340,27 @@ fn a_body_whose_stiffness_or_wave_speed_overflows_is_named() {
         assert!(e.contains(field), "{to}: {e}");
     }
 }
+
+#[test]
+fn a_pair_of_numbers_is_exactly_two() {
+    let e = load(&PAPER_TOML.replace("omega = [10.0, 300.0]", "omega = [10.0, 300.0, 3.0]"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("invalid length 3") && e.contains("two numbers"),
+        "{e}"
+    );
+    let ramp = |eps: &str| {
+        format!(
+            "{PAPER_TOML}\n[pipe]\n[[pipe.features]]\nkind = \"ramp\"\nfrom = 0.0\nto = 1.0\neps = {eps}\n"
+        )
+    };
+    let s = load(&ramp("[0.1, 0.3]")).unwrap();
+    // held at the midpoint of [0.990, 0.991): 0.1 + 0.2 * 0.9905
+    let eps = s.plant.pipe.compile(0.1, 0.5).at(0.99).0;
+    assert!((eps - 0.2981).abs() < 1e-12, "{eps}");
+    let e = load(&ramp("[0.1, 0.2, 0.3]")).unwrap_err().to_string();
+    assert!(e.contains("invalid length 3"), "{e}");
+    let e = load(&ramp("[0.1]")).unwrap_err().to_string();
+    assert!(e.contains("invalid length 1"), "{e}");
+}

@@ -241,10 +241,17 @@ pub struct Plan {
     pub figures: Option<MapFigures>,
 }
 
+/// A plan or scenario file's text, read to at most
+/// [`MAX_SCENARIO_BYTES`](crawler_plant::scenario::MAX_SCENARIO_BYTES) (a device or a file of
+/// unbounded length is refused, not read to the end).
+fn read_text(path: &Path) -> std::io::Result<String> {
+    crawler_plant::framing::read_text_at_most(path, crawler_plant::scenario::MAX_SCENARIO_BYTES)
+}
+
 impl Plan {
     /// Loads a plan file; a relative `scenario` path is taken relative to the plan's folder.
     pub fn from_file(path: &Path) -> Result<Self, PlanError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| PlanError::Io {
+        let text = read_text(path).map_err(|cause| PlanError::Io {
             path: path.display().to_string(),
             cause,
         })?;
@@ -280,7 +287,7 @@ impl Plan {
         let (base_toml, base_origin) = match &raw.scenario {
             Some(p) => {
                 let path: PathBuf = dir.join(p);
-                let text = std::fs::read_to_string(&path).map_err(|cause| {
+                let text = read_text(&path).map_err(|cause| {
                     bad(
                         "scenario",
                         &format!("{p:?}"),
@@ -712,6 +719,22 @@ mod tests {
     }
 
     const EVAL: &str = "[evaluate]\nmodels = [\"paper\"]\n";
+
+    #[test]
+    fn plan_and_scenario_files_of_unbounded_length_are_refused_not_read_to_the_end() {
+        let e = Plan::from_file(Path::new("/dev/zero"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("larger than"), "{e}");
+        let e = Plan::from_toml(
+            &format!("name = \"t\"\nscenario = \"zero\"\n{EVAL}"),
+            "test.toml",
+            Path::new("/dev"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("larger than"), "{e}");
+    }
 
     #[test]
     fn linspace_and_logspace_hit_their_ends_exactly() {
