@@ -399,7 +399,8 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     if let Some(t) = a.idle_timeout {
         anyhow::ensure!(
             t.is_finite() && t > 0.0 && t < 1e9,
-            "invalid --idle-timeout = {t:?}: allowed a number of seconds, 0 < idle-timeout < 1e9"
+            "invalid --idle-timeout = {}: allowed a number of seconds, 0 < idle-timeout < 1e9",
+            crawler_cli::number(t)
         );
     }
     let network = a.network.network()?;

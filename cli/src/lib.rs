@@ -9,7 +9,8 @@
 //! - [`exit`]: the one table of process exit codes;
 //! - [`cpu`]: stop with a clear message on a CPU that lacks the build's instructions;
 //! - [`stdout`]: results on standard output, where a closed pipe ends the output, not the program
-//!   with a panic.
+//!   with a panic;
+//! - [`number`]: a flag's value in an error message (exponent form where it would be long).
 
 pub mod cpu;
 pub mod exit;
@@ -17,5 +18,6 @@ pub mod progress;
 pub mod scenario_args;
 pub mod stdout;
 
+pub use crawler_plant::error::number;
 pub use exit::Exit;
 pub use scenario_args::ScenarioArgs;

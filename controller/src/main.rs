@@ -224,8 +224,8 @@ fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
     let network = a.network.network()?;
     anyhow::ensure!(
         a.wait_timeout.is_finite() && a.wait_timeout > 0.0 && a.wait_timeout < 1e9,
-        "invalid --wait-timeout = {:?}: allowed a number of seconds, 0 < wait-timeout < 1e9",
-        a.wait_timeout
+        "invalid --wait-timeout = {}: allowed a number of seconds, 0 < wait-timeout < 1e9",
+        crawler_cli::number(a.wait_timeout)
     );
     for (name, x) in [
         ("f0", a.f0),

@@ -156,8 +156,8 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
     );
     anyhow::ensure!(
         a.run_timeout.is_finite() && a.run_timeout > 0.0 && a.run_timeout < 1e9,
-        "invalid --run-timeout = {:?}: allowed a number of seconds, 0 < run-timeout < 1e9",
-        a.run_timeout
+        "invalid --run-timeout = {}: allowed a number of seconds, 0 < run-timeout < 1e9",
+        crawler_cli::number(a.run_timeout)
     );
     anyhow::ensure!(a.every >= 1, "invalid --every = 0: allowed 1 or more");
     let dir = super::binaries()?;

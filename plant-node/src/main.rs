@@ -121,7 +121,7 @@ fn seconds(name: &str, x: f64) -> anyhow::Result<std::time::Duration> {
     anyhow::ensure!(
         x.is_finite() && x > 0.0 && x < 1e9,
         "invalid --{name} = {}: allowed a number of seconds, 0 < {name} < 1e9",
-        crawler_plant::error::number(x)
+        crawler_cli::number(x)
     );
     Ok(std::time::Duration::from_secs_f64(x))
 }
@@ -292,7 +292,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             anyhow::ensure!(
                 a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0,
                 "invalid --seconds = {}: allowed a wall time in seconds, 0 < seconds <= 3600",
-                crawler_plant::error::number(a.seconds)
+                crawler_cli::number(a.seconds)
             );
             let r = crawler_plant_node::bench::bench(
                 &scenario,
