@@ -188,7 +188,10 @@ fn one_command_runs_the_whole_cosimulation() {
 #[test]
 fn bad_flags_give_clear_errors_and_nonzero_exit() {
     let check = |exe: &str, args: &[&str], needle: &str| {
+        // without CARGO the launcher uses the binaries beside it rather than running cargo build
+        // (which would rebuild them under the other tests' feet), as in `Proc::spawn`
         let out = std::process::Command::new(bin(exe))
+            .env_remove("CARGO")
             .args(args)
             .output()
             .unwrap();
