@@ -130,10 +130,25 @@ pub struct Recorder {
     /// The plant's `finished` statuses for a step before the model's last that came before any
     /// last state (a task-mode run the plant ended early), by step; a few at most.
     held_finished: BTreeMap<u64, Status>,
+    /// Episode rows not yet sent ([`EPISODE_ROWS`] at most).
+    episodes: EpisodeRows,
 }
 
 /// Most `finished` statuses held while the plant's last state is awaited.
 const HELD_FINISHED_MAX: usize = 8;
+
+/// Episode rows sent to the recording as one chunk. In hard stick-slip tens of thousands of
+/// episodes end per second: a logging call apiece made the recorder fall behind the run, and a
+/// chunk per block of events left the file in thousands of small chunks.
+const EPISODE_ROWS: usize = 4096;
+
+/// Text rows of stick episodes waiting to be sent together, each with its step and time.
+#[derive(Default)]
+struct EpisodeRows {
+    steps: Vec<i64>,
+    times: Vec<f64>,
+    texts: Vec<String>,
+}
 
 /// A recording written to `path`, with the default layout, and streamed to `viewer` if given.
 ///
@@ -209,6 +224,7 @@ impl Recorder {
             plant_gone_at: None,
             plant_last_state: None,
             held_finished: BTreeMap::new(),
+            episodes: EpisodeRows::default(),
         };
         me.log_static()?;
         Ok(me)
@@ -565,6 +581,9 @@ impl Recorder {
     /// Flushes if the last flush is older than the flush interval.
     pub fn maybe_flush(&mut self) {
         if self.last_flush.elapsed() >= self.opts.flush_every {
+            if let Err(e) = self.send_episodes() {
+                eprintln!("crawler-bridge: warning: episodes not recorded: {e:#}");
+            }
             let _ = self.rec.flush_with_timeout(Duration::from_secs(2));
             self.last_flush = Instant::now();
         }
@@ -609,6 +628,7 @@ impl Recorder {
         if self.heat_rows > 0 {
             self.log_heat_block()?;
         }
+        self.send_episodes()?;
         self.rec
             .flush_blocking()
             .map_err(|e| anyhow::anyhow!("cannot flush the recording: {e}"))?;
@@ -909,12 +929,16 @@ impl Recorder {
         Ok(())
     }
 
+    /// One text row per episode at its block's step and time, sent in chunks of
+    /// [`EPISODE_ROWS`] (and whatever is pending at every flush and at the end).
     fn log_events(&mut self, e: &Events) -> anyhow::Result<()> {
         self.rec.set_time_sequence("step", e.step as i64);
         self.rec.set_duration_secs("sim_time", e.time);
         for ep in &e.episodes {
             self.counts.episodes += 1;
-            let text = format!(
+            self.episodes.steps.push(e.step as i64);
+            self.episodes.times.push(e.time);
+            self.episodes.texts.push(format!(
                 "node {} stuck {:.4} s ({:.4}-{:.4} s), left {}",
                 ep.node,
                 ep.duration,
@@ -925,12 +949,33 @@ impl Recorder {
                 } else {
                     "backward"
                 }
-            );
-            self.rec.log(
-                paths::LOG_EPISODES,
-                &rerun::TextLog::new(text).with_level(rerun::TextLogLevel::DEBUG),
-            )?;
+            ));
+            if self.episodes.texts.len() >= EPISODE_ROWS {
+                self.send_episodes()?;
+            }
         }
+        Ok(())
+    }
+
+    /// Sends the pending episode rows as one chunk.
+    fn send_episodes(&mut self) -> anyhow::Result<()> {
+        let rows = std::mem::take(&mut self.episodes);
+        let n = rows.texts.len();
+        if n == 0 {
+            return Ok(());
+        }
+        let columns = rerun::TextLog::update_fields()
+            .with_many_text(rows.texts)
+            .with_many_level(std::iter::repeat_n(rerun::TextLogLevel::DEBUG, n))
+            .columns_of_unit_batches()?;
+        self.rec.send_columns(
+            paths::LOG_EPISODES,
+            [
+                rerun::TimeColumn::new_sequence("step", rows.steps),
+                rerun::TimeColumn::new_duration_secs("sim_time", rows.times),
+            ],
+            columns,
+        )?;
         Ok(())
     }
 
@@ -1068,5 +1113,62 @@ mod pacing {
             r.pace(0, Duration::ZERO, 0);
             assert_eq!(r.every, expected);
         }
+    }
+}
+
+#[cfg(test)]
+mod episodes {
+    use super::*;
+    use crawler_protocol::EpisodeMsg;
+
+    /// Steps of the rows of `log/episodes` in the recording, chunk by chunk.
+    fn episode_chunks(storage: &rerun::sink::MemorySinkStorage) -> Vec<Vec<i64>> {
+        storage
+            .take()
+            .into_iter()
+            .filter_map(|m| match m {
+                rerun::log::LogMsg::ArrowMsg(_, a) => rerun::log::Chunk::from_arrow_msg(&a).ok(),
+                _ => None,
+            })
+            .filter(|c| c.entity_path().to_string() == format!("/{}", paths::LOG_EPISODES))
+            .map(|c| {
+                let steps = c.timelines().get(&"step".into()).expect("step timeline");
+                assert_eq!(steps.times_raw().len(), c.num_rows());
+                steps.times_raw().to_vec()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_episode_is_one_row_at_its_step_sent_in_few_chunks() {
+        let (rec, storage) = rerun::RecordingStreamBuilder::new("episodes")
+            .memory()
+            .expect("memory recording");
+        let mut r = Recorder::new(rec, RecorderOptions::default()).expect("recorder");
+        // 5000 episodes in blocks of 50: one full chunk on the way, the rest at the end
+        let ep = EpisodeMsg {
+            node: 3,
+            start: 0.1,
+            end: 0.2,
+            duration: 0.1,
+            direction: 1,
+        };
+        for step in 1..=100u64 {
+            let e = Events {
+                v: crawler_protocol::PROTOCOL_VERSION,
+                step,
+                time: step as f64 * 1e-3,
+                episodes: vec![ep; 50],
+            };
+            r.log_events(&e).unwrap();
+        }
+        r.finish().unwrap();
+        let chunks = episode_chunks(&storage);
+        let lengths: Vec<usize> = chunks.iter().map(Vec::len).collect();
+        assert_eq!(lengths, vec![EPISODE_ROWS, 5000 - EPISODE_ROWS]);
+        let steps: Vec<i64> = chunks.concat();
+        let expected: Vec<i64> = (1..=100).flat_map(|s| std::iter::repeat_n(s, 50)).collect();
+        assert_eq!(steps, expected);
+        assert_eq!(r.counts().episodes, 5000);
     }
 }
