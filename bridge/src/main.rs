@@ -91,6 +91,10 @@ struct RecordArgs {
     /// Give up if no message arrives for this many seconds (default: wait as long as it takes).
     #[arg(long)]
     idle_timeout: Option<f64>,
+    /// Validate every input (flags, --out, --connect, network options) and exit without
+    /// creating a file or subscribing to anything.
+    #[arg(long)]
+    check: bool,
 }
 
 /// One malloc arena for the whole process. glibc gives threads their own arenas; the Rerun SDK's
@@ -418,6 +422,10 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 "invalid --connect = {u} with --spawn: allowed a loopback address (the viewer is started on this machine)"
             );
         }
+    }
+    if a.check {
+        eprintln!("crawler-bridge: inputs valid ({})", network.describe());
+        return Ok(Exit::Finished.into());
     }
     // from here on Ctrl-C ends the recording properly (and removes an unused temporary file)
     let (stop_tx, stop_rx) = bounded::<()>(4);

@@ -493,6 +493,12 @@ fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     // Every input is checked by the program that owns it before anything starts.
     preflight::check_child("plant", &dir.join("crawler-plant"), &plant_args)?;
     preflight::check_child("controller", &dir.join("crawler-controller"), &ctl_args)?;
+    if let Err(e) = preflight::check_child("recorder", &dir.join("crawler-bridge"), &bridge_args) {
+        if let Some(url) = &a.view_url {
+            eprintln!("crawler: the recorder's --connect above is --view-url = {url}");
+        }
+        return Err(e);
+    }
     if interrupted.load(Ordering::SeqCst) {
         eprintln!("crawler: interrupted before the run started");
         return Ok(Exit::Interrupted.into());

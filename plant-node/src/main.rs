@@ -218,7 +218,8 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// A checkpoint path the plant can write when the run stops: not a directory, and its
-/// directory exists or can be created. Nothing is created or truncated here.
+/// directory exists or can be created (the nearest existing one is a directory whose mode lets
+/// its owner write). Nothing is created or truncated here.
 fn check_checkpoint_path(path: &std::path::Path) -> anyhow::Result<()> {
     anyhow::ensure!(
         !path.is_dir(),
@@ -226,19 +227,31 @@ fn check_checkpoint_path(path: &std::path::Path) -> anyhow::Result<()> {
         path.display()
     );
     let mut dir = path.parent();
-    while let Some(d) = dir.filter(|d| !d.as_os_str().is_empty()) {
-        if d.exists() {
+    loop {
+        let d = match dir.filter(|d| !d.as_os_str().is_empty()) {
+            Some(d) => d,
+            None => std::path::Path::new("."),
+        };
+        if let Ok(meta) = std::fs::metadata(d) {
             anyhow::ensure!(
-                d.is_dir(),
+                meta.is_dir(),
                 "invalid --checkpoint = {}: {} is not a directory",
                 path.display(),
                 d.display()
             );
-            break;
+            anyhow::ensure!(
+                !meta.permissions().readonly(),
+                "invalid --checkpoint = {}: the directory {} is read-only; allowed a file path where the plant can write",
+                path.display(),
+                d.display()
+            );
+            return Ok(());
         }
-        dir = d.parent();
+        match d.parent() {
+            Some(p) if d != std::path::Path::new(".") => dir = Some(p),
+            _ => return Ok(()),
+        }
     }
-    Ok(())
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {

@@ -65,6 +65,8 @@ fn a_refused_start_leaves_an_existing_recording_untouched() {
         (vec!["--t-end", "0"], "t_end"),
         (vec!["--resume", "/nonexistent.ckpt"], "checkpoint"),
         (vec!["--every", "0"], "--every"),
+        // the recorder's inputs are checked before the plant starts, as the others' are
+        (vec!["--view-url", "notaurl"], "invalid --connect = notaurl"),
         (
             vec!["--scenario", "/nonexistent.toml"],
             "cannot read scenario",
@@ -186,6 +188,42 @@ fn one_command_runs_the_whole_cosimulation() {
 }
 
 #[test]
+fn the_recorder_checks_its_inputs_without_creating_anything() {
+    let run = Run::new("recorder-check");
+    let out = run.path("x.rrd");
+    let check = |extra: &[&str]| {
+        std::process::Command::new(bin("crawler-bridge"))
+            .args([
+                "record",
+                "--no-auth",
+                "--check",
+                "--run-id",
+                &run.id,
+                "--out",
+            ])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let ok = check(&[]);
+    let err = String::from_utf8_lossy(&ok.stderr);
+    assert!(ok.status.success(), "{err}");
+    assert!(err.contains("inputs valid"), "{err}");
+    let bad = check(&["--connect", "notaurl"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success());
+    assert!(err.contains("invalid --connect = notaurl"), "{err}");
+    // nothing written next to --out: no recording, no temporary twin
+    let left: Vec<_> = std::fs::read_dir(run.dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("x.rrd"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
 fn bad_flags_give_clear_errors_and_nonzero_exit() {
     let check = |exe: &str, args: &[&str], needle: &str| {
         // without CARGO the launcher uses the binaries beside it rather than running cargo build
@@ -235,6 +273,18 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
         "crawler-plant",
         &["run", "--resume", "/nonexistent.ckpt"],
         "checkpoint",
+    );
+    // a checkpoint the plant could not write when the run stops (it was said to be valid)
+    check(
+        "crawler-plant",
+        &[
+            "run",
+            "--no-auth",
+            "--check",
+            "--checkpoint",
+            "/proc/1/nope/x.ckpt",
+        ],
+        "invalid --checkpoint = /proc/1/nope/x.ckpt: the directory /proc/1 is read-only",
     );
     check(
         "crawler-controller",
