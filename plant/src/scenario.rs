@@ -556,7 +556,10 @@ impl Scenario {
                 "numerics.step",
                 plant.numerics.step,
                 format!(
-                    "a communication step no longer than numerics.t_end = {t_end} s (it is rounded to H = {h:e} s, a whole number of internal steps)"
+                    "a communication step no longer than numerics.t_end = {t_end} s (it is rounded to H = {h:e} s, a whole number of internal steps dt = Courant dx / c = {:e} s, with dx = body.length / numerics.cells = {:e} m and c = sqrt(body.area body.youngs_modulus / body.density) = {:e} m/s)",
+                    d.dt,
+                    d.dx,
+                    plant.body.wave_speed()
                 ),
             ));
         }

@@ -342,6 +342,23 @@ fn a_body_whose_stiffness_or_wave_speed_overflows_is_named() {
 }
 
 #[test]
+fn a_step_rounded_past_the_run_says_which_body_made_the_internal_step_long() {
+    // c = sqrt(1e-308 * 140e3 / 0.1) = 1.18e-151 m/s: one cell of 1/512 m takes 1.65e148 s
+    let e = load(&PAPER_TOML.replace("area = 1.0e-4 ", "area = 1e-308 "))
+        .unwrap_err()
+        .to_string();
+    for part in [
+        "invalid numerics.step = 0.001",
+        "H = 1.650691903766634e148 s",
+        "dt = Courant dx / c = 1.650691903766634e148 s",
+        "dx = body.length / numerics.cells = 1.953125e-3 m",
+        "c = sqrt(body.area body.youngs_modulus / body.density) = 1.18321595661992",
+    ] {
+        assert!(e.contains(part), "{part}: {e}");
+    }
+}
+
+#[test]
 fn a_pair_of_numbers_is_exactly_two() {
     let e = load(&PAPER_TOML.replace("omega = [10.0, 300.0]", "omega = [10.0, 300.0, 3.0]"))
         .unwrap_err()
