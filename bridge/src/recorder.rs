@@ -112,7 +112,11 @@ pub struct Recorder {
     /// When the decimation last changed.
     last_pace_change: Instant,
     finished: bool,
+    /// Body length L, m.
     length: f64,
+    /// Where node `i` sits on the body, in cells: at `(i + node_offset) dx` from the tail (0 on a
+    /// periodic body, 0.5 on a free one, whose nodes are the cell centres).
+    node_offset: f64,
     plant_id: Option<String>,
     last_step_time: (u64, f64),
     run_last_step: Option<u64>,
@@ -212,6 +216,7 @@ impl Recorder {
             last_pace_change: Instant::now(),
             finished: false,
             length: 1.0,
+            node_offset: 0.0,
             plant_id: None,
             last_step_time: (0, 0.0),
             run_last_step: None,
@@ -262,6 +267,8 @@ impl Recorder {
         if info.length.is_finite() && info.length > 0.0 {
             self.length = info.length;
         }
+        // the protocol admits only "periodic" and "free"
+        self.node_offset = if info.boundary == "free" { 0.5 } else { 0.0 };
         self.run_last_step = Some(info.last_step);
         self.facts = Some(RunFacts::of(info));
         let end = info.start_time + info.last_step as f64 * info.step;
@@ -722,18 +729,20 @@ impl Recorder {
         let points: Vec<[f32; 2]> =
             s.u.iter()
                 .enumerate()
-                .map(|(i, u)| [(i as f64 * dx + u) as f32, 0.0])
+                .map(|(i, u)| [((i as f64 + self.node_offset) * dx + u) as f32, 0.0])
                 .collect();
-        let magnified: Vec<[f32; 2]> =
-            s.u.iter()
-                .enumerate()
-                .map(|(i, u)| {
-                    [
-                        (i as f64 * dx + mean + paths::EXAGGERATION * (u - mean)) as f32,
-                        -row as f32,
-                    ]
-                })
-                .collect();
+        let magnified: Vec<[f32; 2]> = s
+            .u
+            .iter()
+            .enumerate()
+            .map(|(i, u)| {
+                [
+                    ((i as f64 + self.node_offset) * dx + mean + paths::EXAGGERATION * (u - mean))
+                        as f32,
+                    -row as f32,
+                ]
+            })
+            .collect();
         self.rec.log(
             paths::BODY_POINTS,
             &rerun::Points2D::new(points)
@@ -785,8 +794,10 @@ impl Recorder {
         };
         let n = s.u.len();
         let dx = self.length / n as f64;
-        let world = |i: usize| env.start + i as f64 * dx + s.u[i];
-        let centre = env.start + 0.5 * self.length - 0.5 * dx + s.u.iter().sum::<f64>() / n as f64;
+        let world = |i: usize| env.start + (i as f64 + self.node_offset) * dx + s.u[i];
+        // the cells tile the body [start, start + L) at rest (on a periodic body node 0's cell is
+        // half at the tail, half at the head): the centre of mass is at start + L / 2 + mean u
+        let centre = env.start + 0.5 * self.length + s.u.iter().sum::<f64>() / n as f64;
         let centre_eps = env.at(centre).0;
         if !recorded {
             return self

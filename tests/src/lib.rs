@@ -409,6 +409,8 @@ pub struct Entity {
     pub strips: Vec<Vec<Vec<[f32; 2]>>>,
     /// Bar charts (BarChart archetype): the `step` of each row and its values, in step order.
     pub bars: Vec<(i64, Vec<f64>)>,
+    /// Points (Points2D archetype): the `step` of each row and its positions, in step order.
+    pub points: Vec<(i64, Vec<[f32; 2]>)>,
 }
 
 impl Recording {
@@ -434,6 +436,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
     let scalars = rerun::Scalars::descriptor_scalars().component;
     let strips = rerun::LineStrips2D::descriptor_strips().component;
     let bar_values = rerun::BarChart::descriptor_values().component;
+    let positions = rerun::Points2D::descriptor_positions().component;
     let mut rec = Recording::default();
     for (id, store) in &stores {
         if id.kind() != rerun::StoreKind::Recording {
@@ -476,6 +479,13 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             for (i, bar) in bars.into_iter().enumerate() {
                 e.bars.push((steps.times_raw()[i], bar));
             }
+            let rows = chunk.iter_component::<rerun::components::Position2D>(positions);
+            for (i, row) in rows.enumerate() {
+                let row: Vec<[f32; 2]> = row.iter().map(|p| [p.x(), p.y()]).collect();
+                if !row.is_empty() {
+                    e.points.push((steps.times_raw()[i], row));
+                }
+            }
             for i in order {
                 e.rows += 1;
                 e.steps.push(steps.times_raw()[i]);
@@ -496,6 +506,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
         e.steps = pairs.iter().map(|p| p.0).collect();
         e.scalars = pairs.iter().filter_map(|p| p.1).collect();
         e.bars.sort_by_key(|b| b.0);
+        e.points.sort_by_key(|p| p.0);
     }
     Ok(rec)
 }

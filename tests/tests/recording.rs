@@ -375,18 +375,87 @@ fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not
     let n_f = &rec.entity("pipe/n_f").strips[0][0];
     assert!(n_f.iter().all(|p| p[1] == -0.5), "n_F is uniform: {n_f:?}");
 
-    // the friction under the centre: one value per state, always one the pipe has, and the
-    // centre (from X = 0.5 m - dx / 2, moving forward) runs onto the first patch
+    // the friction under the centre: one value per state, always one the pipe has; the cells
+    // tile the body [0, 1 m) at rest (node 0's cell half at the tail, half at the head), so the
+    // centre of mass starts at X = 0.5 m exactly, the first patch's edge, on the patch (patches
+    // are [from, to)); half a cell back it would be on the plain pipe
     let centre = rec.entity("pipe/centre_eps");
     assert_eq!(centre.steps, rec.entity("tail/plant").steps);
     assert!(centre.scalars.iter().all(|&e| e == 0.1 || e == 0.8));
-    assert_eq!(centre.scalars[0], 0.1);
+    assert_eq!(centre.steps[0], 0);
+    assert_eq!(centre.scalars[0], 0.8, "the centre at t = 0");
+    // the nodes on the line at every step whose fields were recorded, node 0 at X = u(0, t)
+    let body = &rec.entity("pipe/body").points;
+    let steps: Vec<i64> = body.iter().map(|p| p.0).collect();
+    assert_eq!(steps, rec.entity("fields/u").steps);
+    assert_nodes_drawn_at(&rec, "pipe/body", 0.0);
+}
+
+/// Node 0 of every row of the points at `entity` is at `offset + u(0, t)` (m), `u(0, t)` the
+/// plant's tail displacement the recording holds at the same step.
+fn assert_nodes_drawn_at(rec: &Recording, entity: &str, offset: f64) {
+    let tail = rec.entity("tail/plant");
+    let rows = &rec.entity(entity).points;
+    assert!(!rows.is_empty(), "{entity} has no points");
+    for (step, points) in rows {
+        let k = tail
+            .steps
+            .binary_search(step)
+            .expect("a tail value at every state");
+        let expected = (offset + tail.scalars[k]) as f32;
+        assert_eq!(points[0][0], expected, "{entity}: node 0 at step {step}");
+    }
+}
+
+/// A free body's nodes are the cell centres: the recording draws node 0 half a cell from the
+/// tail's end, in the body view and on the pipe, and looks the pipe's friction up there.
+#[test]
+fn a_free_body_is_drawn_where_its_nodes_are() {
+    let run = Run::new("freepipe");
+    let rrd = run.path("free.rrd");
+    // the free-body scenario (2.5 m, two free ends) in a pipe with one patch under its middle
+    let body = std::fs::read_to_string(repo_root().join("scenarios/free-body.toml")).unwrap();
+    let scenario = run.path("free-pipe.toml");
+    let pipe = "\n[pipe]\nstart = 0.0\n\n[[pipe.features]]\nkind = \"patch\"\nfrom = 1.0\nto = 1.5\neps = 0.8\n";
+    std::fs::write(&scenario, body + pipe).unwrap();
+    let scenario = scenario.to_str().unwrap();
+    // 80 cells: dx = 31.25 mm, node 0 at 15.625 mm; just past the 5 s of settling
+    let plant = run.plant(&["--scenario", scenario, "--cells", "80", "--t-end", "6"]);
+    let bridge = run.bridge(&rrd, &[]);
+    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
+    let controller = run.controller(&["--policy", "wave", "--f0", "1.0", "--alpha", "1.0"]);
+    let p = plant.wait(Duration::from_secs(120));
+    assert!(p.status.success(), "{}", p.stderr);
+    assert!(controller.wait(Duration::from_secs(30)).status.success());
+    let b = bridge.wait(Duration::from_secs(60));
+    assert!(b.status.success(), "{}", b.stderr);
+    let rec = read_recording(&rrd).unwrap();
+
+    let half_cell = 0.5 * 2.5 / 80.0;
+    assert_nodes_drawn_at(&rec, "body/points", half_cell);
+    assert_nodes_drawn_at(&rec, "pipe/body", half_cell);
+    // every node on the pipe's line: eps 0.8 on [1, 1.5), 0.1 elsewhere, at its own X
+    for (step, points) in &rec.entity("pipe/body").points {
+        assert_eq!(points.len(), 80);
+        for p in points {
+            let eps = if (1.0..1.5).contains(&f64::from(p[0])) {
+                0.8
+            } else {
+                0.1
+            };
+            assert_eq!(-p[1], eps as f32, "node at X = {} at step {step}", p[0]);
+        }
+    }
+    // the friction under the centre of mass, which starts at 1.25 m, on the patch, and crawls
+    // off its end (1.5 m)
+    let centre = rec.entity("pipe/centre_eps");
+    assert_eq!(centre.steps, rec.entity("tail/plant").steps);
+    assert!(centre.scalars.iter().all(|&e| e == 0.1 || e == 0.8));
+    assert_eq!((centre.steps[0], centre.scalars[0]), (0, 0.8));
     assert!(
-        centre.scalars.contains(&0.8),
-        "the centre never reached the patch"
+        centre.scalars.contains(&0.1),
+        "the centre never left the patch"
     );
-    // the nodes on the line at every step whose fields were recorded
-    assert_eq!(rec.entity("pipe/body").steps, rec.entity("fields/u").steps);
 }
 
 /// A plant that dies (kill -9) sends neither its last state nor its final status: the recorder
