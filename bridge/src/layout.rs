@@ -141,7 +141,7 @@ fn tree() -> Node {
             ),
             view(
                 "TimeSeries",
-                "eps of the pipe under the centre of mass",
+                "eps of the pipe under the centre of mass (where the friction varies)",
                 paths::PIPE_CENTRE_EPS,
             ),
         ],
