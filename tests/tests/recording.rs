@@ -322,14 +322,13 @@ fn patchy_pipe_eps(x: f64) -> f64 {
     }
 }
 
-#[test]
-fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not_told() {
-    let run = Run::new("pipe");
-    let rrd = run.path("pipe.rrd");
-    let scenario = repo_root().join("scenarios/patchy-pipe.toml");
+/// Plant (`scenario` on `cells` cells, to t = 6 s, just past the 5 s of settling), recorder and
+/// a resonant wave controller (f0 = 1 N); the recording, once all three ended well.
+fn record_wave_run(run: &Run, scenario: &std::path::Path, cells: usize) -> Recording {
+    let rrd = run.path("run.rrd");
     let scenario = scenario.to_str().unwrap();
-    // a short run on a coarse grid, the body's centre starting at X = 0.5 m, a patch's edge
-    let plant = run.plant(&["--scenario", scenario, "--cells", "64", "--t-end", "6"]);
+    let cells = cells.to_string();
+    let plant = run.plant(&["--scenario", scenario, "--cells", &cells, "--t-end", "6"]);
     let bridge = run.bridge(&rrd, &[]);
     // the recorder knows the model and the pipe before the first state (no state comes before
     // a controller joins)
@@ -340,7 +339,15 @@ fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not
     assert!(controller.wait(Duration::from_secs(30)).status.success());
     let b = bridge.wait(Duration::from_secs(60));
     assert!(b.status.success(), "{}", b.stderr);
-    let rec = read_recording(&rrd).unwrap();
+    read_recording(&rrd).unwrap()
+}
+
+#[test]
+fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not_told() {
+    let run = Run::new("pipe");
+    let scenario = repo_root().join("scenarios/patchy-pipe.toml");
+    // a short run on a coarse grid, the body's centre starting at X = 0.5 m, a patch's edge
+    let rec = record_wave_run(&run, &scenario, 64);
 
     // the map: a step line equal to the scenario's patches, though the plant told controllers
     // only eps = 0.1 (disclose = false)
@@ -412,24 +419,13 @@ fn assert_nodes_drawn_at(rec: &Recording, entity: &str, offset: f64) {
 #[test]
 fn a_free_body_is_drawn_where_its_nodes_are() {
     let run = Run::new("freepipe");
-    let rrd = run.path("free.rrd");
     // the free-body scenario (2.5 m, two free ends) in a pipe with one patch under its middle
     let body = std::fs::read_to_string(repo_root().join("scenarios/free-body.toml")).unwrap();
     let scenario = run.path("free-pipe.toml");
     let pipe = "\n[pipe]\nstart = 0.0\n\n[[pipe.features]]\nkind = \"patch\"\nfrom = 1.0\nto = 1.5\neps = 0.8\n";
     std::fs::write(&scenario, body + pipe).unwrap();
-    let scenario = scenario.to_str().unwrap();
-    // 80 cells: dx = 31.25 mm, node 0 at 15.625 mm; just past the 5 s of settling
-    let plant = run.plant(&["--scenario", scenario, "--cells", "80", "--t-end", "6"]);
-    let bridge = run.bridge(&rrd, &[]);
-    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
-    let controller = run.controller(&["--policy", "wave", "--f0", "1.0", "--alpha", "1.0"]);
-    let p = plant.wait(Duration::from_secs(120));
-    assert!(p.status.success(), "{}", p.stderr);
-    assert!(controller.wait(Duration::from_secs(30)).status.success());
-    let b = bridge.wait(Duration::from_secs(60));
-    assert!(b.status.success(), "{}", b.stderr);
-    let rec = read_recording(&rrd).unwrap();
+    // 80 cells: dx = 31.25 mm, node 0 at 15.625 mm
+    let rec = record_wave_run(&run, &scenario, 80);
 
     let half_cell = 0.5 * 2.5 / 80.0;
     assert_nodes_drawn_at(&rec, "body/points", half_cell);
