@@ -176,6 +176,8 @@ impl TravellingWaveModel {
                 let z_new = z * s.e + if dir > 0.0 { s.c_plus } else { s.c_minus };
                 let w_trial = wp + z_new;
                 if w_trial * dir > 0.0 {
+                    // still sliding the same way: `dir` is left as it is (recomputing it from w
+                    // would put the sign of w on the step's dependency chain, a third of its time)
                     out.slope *= s.e;
                     (w_trial, z_new, dir, false)
                 } else {
@@ -194,12 +196,9 @@ impl TravellingWaveModel {
                     if sel.stuck {
                         rest_share = 1.0 - theta;
                     }
-                    (
-                        sel.velocity,
-                        sel.velocity - wp,
-                        theta * dir + (1.0 - theta) * sel.s,
-                        sel.stuck,
-                    )
+                    let s_mean = theta * dir + (1.0 - theta) * sel.s;
+                    dir = direction(sel.stuck, sel.velocity);
+                    (sel.velocity, sel.velocity - wp, s_mean, sel.stuck)
                 }
             } else {
                 // At rest (or at exact resonance, where w follows the force pointwise): implicit step.
@@ -226,9 +225,9 @@ impl TravellingWaveModel {
                     (false, true) => 1.0 - edge_share(),
                     (false, false) => 0.0,
                 };
+                dir = direction(sel.stuck, sel.velocity);
                 (sel.velocity, sel.velocity - wp, sel.s, sel.stuck)
             };
-            dir = if stuck || w == 0.0 { 0.0 } else { w.signum() };
             z = z_next;
             wp_prev = wp;
             held_prev = held_now;
@@ -302,18 +301,32 @@ impl TravellingWaveModel {
             z = 0.0;
             converged = true;
         }
+        // Once the iteration is about to land within the tolerance, the next sweep carries every
+        // sum: if it does land, it is the answer (without a profile to fill) and the last sweep
+        // is saved; if not, its end state serves the iteration all the same.
+        let mut last_full = None;
+        let mut expect_landing = false;
         for _ in 0..12 {
             if converged {
                 break;
             }
-            let res = self.sweep::<false>(op, &s, z, None).end_z - z;
+            let sw = if expect_landing {
+                self.sweep::<true>(op, &s, z, None)
+            } else {
+                self.sweep::<false>(op, &s, z, None)
+            };
+            let res = sw.end_z - z;
             if res.abs() <= tol {
                 converged = true;
+                last_full = expect_landing.then_some(sw);
                 break;
             }
             if !(res.is_finite() && res.abs() < 0.7 * last) {
                 break;
             }
+            // the secant converges faster than linearly: the next residual is at most about
+            // this one times the ratio by which the last step shrank it
+            expect_landing = res.abs() * (res.abs() / last) <= tol;
             last = res.abs();
             let denom = res - r_prev.0;
             let next = if denom != 0.0 {
@@ -326,7 +339,10 @@ impl TravellingWaveModel {
             z = next;
         }
         if converged {
-            let sw = self.sweep::<true>(op, &s, z, profile);
+            let sw = match (last_full, profile) {
+                (Some(sw), None) => sw,
+                (_, profile) => self.sweep::<true>(op, &s, z, profile),
+            };
             return sw.sum_w.is_finite().then_some((s, sw));
         }
         let mut root = 0.0;
@@ -390,6 +406,15 @@ impl TravellingWaveModel {
         };
         self.solve(op, Some(&mut pr))?;
         Some(pr)
+    }
+}
+
+/// The direction of sliding after a step that ended at velocity `w`: +1, -1, or 0 at rest.
+fn direction(stuck: bool, w: f64) -> f64 {
+    if stuck || w == 0.0 {
+        0.0
+    } else {
+        w.signum()
     }
 }
 

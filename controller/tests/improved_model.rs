@@ -230,3 +230,45 @@ fn near_resonance_the_plant_and_the_model_agree_on_the_stick_phases() {
     assert!(rel(plant.power, m.power.unwrap()) < 5e-3);
     assert!(rel(plant.max_stress, m.max_stress.unwrap()) < 5e-3);
 }
+
+/// A prediction and the steady profile come from the same periodic solution: the profile's
+/// mean velocity and mean friction selection are the predicted V and <s> to the last bit (the
+/// prediction takes its sums from the sweep that found the fixed point, the profile from a
+/// sweep of its own at that point), on sliding, reversing and sticking points.
+#[test]
+fn the_profile_is_the_solution_the_prediction_reports() {
+    let model = TravellingWaveModel::default();
+    let mut sticking = 0;
+    for &(eps, f0, alpha, _) in POINTS
+        .iter()
+        .chain(&[(0.1, 0.5, 2.0, 0), (1.0, 1.0, 0.9, 0)])
+    {
+        let s = Scenario::load(
+            None,
+            &Overrides {
+                eps: Some(eps),
+                f0: Some(f0),
+                alpha: Some(alpha),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let op = OperatingPoint::of(&s);
+        let p = model.predict(&op);
+        let profile = model.profile(&op).expect("a periodic solution");
+        let n = profile.velocity.len();
+        assert_eq!(n, model.steps);
+        let mean = |x: &[f64]| x.iter().sum::<f64>() / n as f64;
+        let at = format!("eps {eps} f0 {f0} alpha {alpha}");
+        assert_eq!(mean(&profile.velocity), p.velocity.unwrap(), "V at {at}");
+        assert_eq!(
+            mean(&profile.selection),
+            p.mean_friction_selection.unwrap(),
+            "<s> at {at}"
+        );
+        if p.stuck_fraction.unwrap() > 0.0 {
+            sticking += 1;
+        }
+    }
+    assert!(sticking >= 3, "{sticking} sticking points");
+}
