@@ -19,21 +19,30 @@ pub fn set_threads(n: usize) {
 
 /// Maps `f` over `items` on all cores (or [`set_threads`]), preserving order.
 pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    parallel_map_range(items.len(), |i| f(&items[i]))
+}
+
+/// `f(0), f(1), ..., f(n - 1)` computed on all cores (or [`set_threads`]), in order.
+pub fn parallel_map_range<R: Send>(n: usize, f: impl Fn(usize) -> R + Sync) -> Vec<R> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let limit = THREADS.load(std::sync::atomic::Ordering::Relaxed);
-    let threads = (if limit == 0 { cores } else { limit.min(cores) }).min(items.len().max(1));
-    if threads <= 1 || items.len() < 64 {
-        return items.iter().map(&f).collect();
+    let threads = (if limit == 0 { cores } else { limit.min(cores) }).min(n.max(1));
+    if threads <= 1 || n < 64 {
+        return (0..n).map(f).collect();
     }
-    let chunk = items.len().div_ceil(threads);
+    let chunk = n.div_ceil(threads);
     std::thread::scope(|scope| {
-        let handles: Vec<_> = items
-            .chunks(chunk)
-            .map(|part| scope.spawn(|| part.iter().map(&f).collect::<Vec<R>>()))
+        let handles: Vec<_> = (0..n)
+            .step_by(chunk)
+            .map(|start| {
+                let f = &f;
+                scope.spawn(move || (start..(start + chunk).min(n)).map(f).collect::<Vec<R>>())
+            })
             .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().expect("worker thread"))
-            .collect()
+        let mut out = Vec::with_capacity(n);
+        for h in handles {
+            out.extend(h.join().expect("worker thread"));
+        }
+        out
     })
 }

@@ -20,7 +20,7 @@ mod grid;
 mod outcome;
 mod paper_mileage;
 
-pub use grid::{linspace, parallel_map, set_threads};
+pub use grid::{linspace, parallel_map, parallel_map_range, set_threads};
 pub use outcome::{
     Binding, Cell, Choice, Infeasibility, Infeasible, Margins, OptimizeError, OptimizeReport,
     Optimum,
@@ -256,22 +256,16 @@ impl Problem {
             grid.omega_points,
         );
         let ks = self.k_values(grid.k_points)?;
-        let points: Vec<(f64, f64)> = ks
-            .iter()
-            .flat_map(|&k| omegas.iter().map(move |&w| (w, k)))
-            .collect();
         let peak = h_peak(self.friction.n_f);
         let rows: Vec<(f64, Option<f64>)> = match model {
             ModelChoice::Paper => ks.iter().map(|&k| self.mileage_root(k, peak)).collect(),
             ModelChoice::Improved(_) => Vec::new(),
         };
         let n_omega = omegas.len();
-        let indexed: Vec<(usize, f64, f64)> = points
-            .iter()
-            .enumerate()
-            .map(|(i, &(w, k))| (i / n_omega, w, k))
-            .collect();
-        let cells = parallel_map(&indexed, |&(row, omega, k)| {
+        // row-major: k by row, omega along it
+        let cells = parallel_map_range(ks.len() * n_omega, |i| {
+            let (row, omega) = (i / n_omega, omegas[i % n_omega]);
+            let k = ks[row];
             let alpha = omega / (k * self.body.wave_speed());
             let choice = match model {
                 ModelChoice::Paper => self.choose_paper_with(omega, k, peak, &rows[row]),
@@ -300,37 +294,37 @@ impl Problem {
                 },
             }
         });
-        let feasible = || {
-            cells
-                .iter()
-                .enumerate()
-                .filter_map(|(i, c)| Some((i, c.velocity?, c.f0?)))
-        };
-        let Some(grid_top) = feasible().map(|c| c.1).max_by(f64::total_cmp) else {
+        let Some(grid_top) = cells
+            .iter()
+            .filter_map(|c| c.f0.and(c.velocity))
+            .max_by(f64::total_cmp)
+        else {
             return Err(OptimizeError::Infeasible(infeasibility_summary(&cells)));
         };
-        let (best_index, _, _) = feasible()
-            .reduce(|a, b| {
-                if better((b.1, b.2), (a.1, a.2), grid_top, tol) {
-                    b
-                } else {
-                    a
-                }
-            })
-            .expect("a feasible cell exists");
-        let tied: Vec<&Cell> = feasible()
-            .filter(|c| c.1 >= grid_top * (1.0 - tol))
-            .map(|c| &cells[c.0])
-            .collect();
-        let range = |f: &dyn Fn(&Cell) -> f64| {
-            tied.iter()
-                .fold([f64::INFINITY, f64::NEG_INFINITY], |r, c| {
-                    [r[0].min(f(c)), r[1].max(f(c))]
-                })
-        };
-        let tied_speeds = range(&|c| c.velocity.unwrap_or(0.0));
-        let (tied_omega, tied_k) = (range(&|c| c.omega), range(&|c| c.k));
-        let tied_cells = tied.len();
+        // One pass over the cells within the tolerance of the fastest: the best of them (a cell
+        // outside never beats one inside), and their spread.
+        let floor = grid_top * (1.0 - tol);
+        let mut best: Option<(usize, f64, f64)> = None;
+        let mut tied_cells = 0;
+        let widen = |r: &mut [f64; 2], x: f64| *r = [r[0].min(x), r[1].max(x)];
+        let empty = [f64::INFINITY, f64::NEG_INFINITY];
+        let (mut tied_speeds, mut tied_omega, mut tied_k) = (empty, empty, empty);
+        for (i, c) in cells.iter().enumerate() {
+            let (Some(v), Some(f0)) = (c.velocity, c.f0) else {
+                continue;
+            };
+            if v < floor {
+                continue;
+            }
+            tied_cells += 1;
+            widen(&mut tied_speeds, v);
+            widen(&mut tied_omega, c.omega);
+            widen(&mut tied_k, c.k);
+            if best.is_none_or(|b| better((v, f0), (b.1, b.2), grid_top, tol)) {
+                best = Some((i, v, f0));
+            }
+        }
+        let (best_index, _, _) = best.expect("the fastest cell is within the tolerance");
         let mut top = grid_top;
         let (mut omega, mut k) = (cells[best_index].omega, cells[best_index].k);
         let mut choice = self
