@@ -22,27 +22,20 @@ pub fn parallel_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -
     parallel_map_range(items.len(), |i| f(&items[i]))
 }
 
-/// `f(0), f(1), ..., f(n - 1)` computed on all cores (or [`set_threads`]), in order.
+/// `f(0), f(1), ..., f(n - 1)` computed on all cores (or [`set_threads`]), in order, written in
+/// place (a grid's report holds a quarter of a million cells).
 pub fn parallel_map_range<R: Send>(n: usize, f: impl Fn(usize) -> R + Sync) -> Vec<R> {
+    use rayon::prelude::*;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let limit = THREADS.load(std::sync::atomic::Ordering::Relaxed);
     let threads = (if limit == 0 { cores } else { limit.min(cores) }).min(n.max(1));
     if threads <= 1 || n < 64 {
         return (0..n).map(f).collect();
     }
-    let chunk = n.div_ceil(threads);
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..n)
-            .step_by(chunk)
-            .map(|start| {
-                let f = &f;
-                scope.spawn(move || (start..(start + chunk).min(n)).map(f).collect::<Vec<R>>())
-            })
-            .collect();
-        let mut out = Vec::with_capacity(n);
-        for h in handles {
-            out.extend(h.join().expect("worker thread"));
-        }
-        out
-    })
+    let map = || (0..n).into_par_iter().map(&f).collect();
+    match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+        Ok(pool) => pool.install(map),
+        // no threads to be had: the work is the same on this one
+        Err(_) => (0..n).map(&f).collect(),
+    }
 }
