@@ -226,6 +226,7 @@ fn discover(
     let status_pub = link
         .session
         .declare_publisher(keys.status(Role::Controller))
+        .congestion_control(CongestionControl::Block)
         .wait()
         .map_err(z)?;
     publish_status(
@@ -293,6 +294,7 @@ fn serve(
     let inbox = Inbox::open(session, keys, &RunLimits::new(info.cells as usize), seal)?;
     let status_pub = session
         .declare_publisher(keys.status(Role::Controller))
+        .congestion_control(CongestionControl::Block)
         .wait()
         .map_err(z)?;
     let publish_status = |state: ProcessState, message: &str, step: u64| {
@@ -321,8 +323,12 @@ fn serve(
         .express(true)
         .wait()
         .map_err(z)?;
+    // Blocking like the actuation: a wave's predictions are sent once, and the recorder gets
+    // them through the plant's link, behind its states; a dropping publisher lost them whenever
+    // that link was congested for a moment, and with them the models' lines for the whole run.
     let prediction_pub = session
         .declare_publisher(keys.prediction())
+        .congestion_control(CongestionControl::Block)
         .wait()
         .map_err(z)?;
     // Joining: the plant takes the first controller whose token it sees.
