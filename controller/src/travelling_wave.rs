@@ -61,6 +61,8 @@ struct Sweep {
     end_z: f64,
     /// d end_z / d z0 (0 once the period restarted from rest or from a crossing).
     slope: f64,
+    /// Some step ended stuck: the rest of the period started from rest, whatever z0 was.
+    stuck_once: bool,
     sum_w: f64,
     sum_s: f64,
     sum_w_cos: f64,
@@ -196,6 +198,7 @@ impl TravellingWaveModel {
                     if sel.stuck {
                         rest_share = 1.0 - theta;
                     }
+                    out.stuck_once |= sel.stuck;
                     let s_mean = theta * dir + (1.0 - theta) * sel.s;
                     dir = direction(sel.stuck, sel.velocity);
                     (sel.velocity, sel.velocity - wp, s_mean, sel.stuck)
@@ -205,6 +208,7 @@ impl TravellingWaveModel {
                 let b = wp + s.e * z + s.push;
                 let sel = select_with_inverse(b, s.g, s.inv_g);
                 out.slope = if sel.stuck { 0.0 } else { out.slope * s.e };
+                out.stuck_once |= sel.stuck;
                 // A switch inside the step: where the held selection crosses the band edge.
                 let was_at_rest = dir == 0.0;
                 let edge_share = || {
@@ -289,10 +293,8 @@ impl TravellingWaveModel {
         // switching patterns: a few sweeps. If it stops contracting, fall back to bracketed
         // regula falsi from 0.
         let mut converged = false;
-        let (mut z_prev, mut r_prev) = (0.0, {
-            let sw = self.sweep::<false>(op, &s, 0.0, None);
-            (sw.end_z, sw.slope)
-        });
+        let first = self.sweep::<false>(op, &s, 0.0, None);
+        let (mut z_prev, mut r_prev) = (0.0, (first.end_z, first.slope));
         let r0 = r_prev.0;
         let mut z = r0 / (1.0 - r_prev.1);
         r_prev.0 = r0;
@@ -305,7 +307,9 @@ impl TravellingWaveModel {
         // sum: if it does land, it is the answer (without a profile to fill) and the last sweep
         // is saved; if not, its end state serves the iteration all the same.
         let mut last_full = None;
-        let mut expect_landing = false;
+        // A period that stuck somewhere ends where it would from any z0 that sticks there too:
+        // the first step, z = z_end, is then the fixed point (to the last bit, as a rule).
+        let mut expect_landing = first.stuck_once;
         for _ in 0..12 {
             if converged {
                 break;
