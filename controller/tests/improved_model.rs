@@ -9,6 +9,27 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
 }
 
+/// The default scenario with this friction and drive; with `cells`, set up for a 10 s plant run.
+fn scenario(eps: f64, f0: f64, alpha: f64, cells: Option<i64>) -> Scenario {
+    Scenario::load(
+        None,
+        &Overrides {
+            eps: Some(eps),
+            f0: Some(f0),
+            alpha: Some(alpha),
+            cells,
+            t_end: cells.map(|_| 10.0),
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// The default scenario's operating point with this friction and drive.
+fn point(eps: f64, f0: f64, alpha: f64) -> OperatingPoint {
+    OperatingPoint::of(&scenario(eps, f0, alpha, None))
+}
+
 /// (eps, f0, alpha, cells): cells chosen so that the plant itself is converged to well under 1 %.
 const POINTS: &[(f64, f64, f64, i64)] = &[
     (0.1, 0.5, 0.3, 2048), // a slow wave: sigma converges at first order (velocity reversals)
@@ -27,18 +48,7 @@ const POINTS: &[(f64, f64, f64, i64)] = &[
 fn predicts_speed_power_and_stress_within_one_percent_of_the_plant() {
     let model = TravellingWaveModel::default();
     for &(eps, f0, alpha, cells) in POINTS {
-        let s = Scenario::load(
-            None,
-            &Overrides {
-                eps: Some(eps),
-                f0: Some(f0),
-                alpha: Some(alpha),
-                cells: Some(cells),
-                t_end: Some(10.0),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let s = scenario(eps, f0, alpha, Some(cells));
         let plant = simulate(&s, SimulateOptions::default()).unwrap();
         let p = model.predict(&OperatingPoint::of(&s));
         let (v, pw, sg) = (p.velocity.unwrap(), p.power.unwrap(), p.max_stress.unwrap());
@@ -85,17 +95,7 @@ fn predicts_speed_power_and_stress_within_one_percent_of_the_plant() {
 fn satisfies_the_steady_identity_and_bound() {
     let model = TravellingWaveModel::default();
     for &(eps, f0, alpha, _) in POINTS {
-        let s = Scenario::load(
-            None,
-            &Overrides {
-                eps: Some(eps),
-                f0: Some(f0),
-                alpha: Some(alpha),
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let op = OperatingPoint::of(&s);
+        let op = point(eps, f0, alpha);
         let p = model.predict(&op);
         let f = op.friction;
         let v = p.velocity.unwrap();
@@ -145,17 +145,7 @@ fn a_forcing_too_strong_for_f64_is_outside_validity_not_noise() {
 
 #[test]
 fn refines_towards_a_limit_as_the_march_is_refined() {
-    let s = Scenario::load(
-        None,
-        &Overrides {
-            eps: Some(1.0),
-            f0: Some(0.2),
-            alpha: Some(0.5),
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let op = OperatingPoint::of(&s);
+    let op = point(1.0, 0.2, 0.5);
     let v: Vec<f64> = [512, 2048, 8192]
         .iter()
         .map(|&steps| {
@@ -243,17 +233,7 @@ fn the_profile_is_the_solution_the_prediction_reports() {
         .iter()
         .chain(&[(0.1, 0.5, 2.0, 0), (1.0, 1.0, 0.9, 0)])
     {
-        let s = Scenario::load(
-            None,
-            &Overrides {
-                eps: Some(eps),
-                f0: Some(f0),
-                alpha: Some(alpha),
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let op = OperatingPoint::of(&s);
+        let op = point(eps, f0, alpha);
         let p = model.predict(&op);
         let profile = model.profile(&op).expect("a periodic solution");
         let n = profile.velocity.len();
