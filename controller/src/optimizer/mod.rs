@@ -313,7 +313,7 @@ impl Problem {
             let (Some(v), Some(f0)) = (c.velocity, c.f0) else {
                 continue;
             };
-            if v < floor {
+            if v < floor || v.is_nan() {
                 continue;
             }
             tied_cells += 1;
