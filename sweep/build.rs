@@ -23,7 +23,9 @@ fn main() {
     let ws = root.parent().expect("workspace root");
     let sources = [
         ws.join("plant/src"),
-        ws.join("controller/src"),
+        ws.join("facts/src"),
+        ws.join("models/src"),
+        ws.join("policies/src"),
         ws.join("scenarios"),
         root.join("src/evaluate"),
     ];

@@ -3,6 +3,7 @@
 //!
 //! `cargo run --release -p crawler-bridge --example soak -- STEPS CELLS OUT.rrd`
 
+use crawler_facts::{Metric, MetricValues};
 use std::time::Duration;
 
 use crawler_bridge::{Incoming, Recorder, RecorderOptions};
@@ -69,14 +70,16 @@ fn main() -> anyhow::Result<()> {
                 steady: t > 5.0,
                 start: t - 0.085,
                 end: t,
-                velocity: 0.049,
-                power: 4.73,
-                mileage: Some(0.0103),
-                max_stress: 36300.0,
-                max_strain: 0.0026,
-                stuck_fraction: 0.1,
-                mean_friction_selection: -0.5,
-                episodes_per_node_per_period: 1.0,
+                values: MetricValues::of(&[
+                    (Metric::Velocity, 0.049),
+                    (Metric::Power, 4.73),
+                    (Metric::Mileage, 0.0103),
+                    (Metric::MaxStress, 36300.0),
+                    (Metric::MaxStrain, 0.0026),
+                    (Metric::StuckFraction, 0.1),
+                    (Metric::MeanFrictionSelection, -0.5),
+                    (Metric::EpisodesPerNodePerPeriod, 1.0),
+                ]),
             };
             r.handle(Incoming::Metrics(encode(&m)))?;
             let e = Events {

@@ -156,19 +156,8 @@ pub fn metrics(m: &Metrics, f: &RunFacts) -> Result<(), String> {
             m.end, m.start
         ));
     }
-    for (name, x) in [
-        ("max_stress", m.max_stress),
-        ("max_strain", m.max_strain),
-        (
-            "episodes_per_node_per_period",
-            m.episodes_per_node_per_period,
-        ),
-    ] {
-        if x < 0.0 {
-            return Err(format!("metrics.{name} = {x}: allowed >= 0"));
-        }
-    }
-    Ok(())
+    // every value within its metric's range (the metric table's)
+    m.values.validate("metrics").map_err(|e| e.to_string())
 }
 
 /// A prediction of the run's controller (`controller`, once known from the states) for a step
@@ -209,6 +198,7 @@ pub fn terminal(s: &Status, f: &RunFacts, last_state: Option<u64>) -> Result<(),
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crawler_facts::{Metric, MetricValues};
     use crawler_protocol::{EpisodeMsg, Role, PROTOCOL_VERSION};
 
     fn facts() -> RunFacts {
@@ -323,14 +313,16 @@ mod tests {
             steady: true,
             start: 4.9,
             end: 5.0,
-            velocity: 0.05,
-            power: 1.0,
-            mileage: Some(0.05),
-            max_stress: 1.5e4,
-            max_strain: 0.1,
-            stuck_fraction: 0.02,
-            mean_friction_selection: 0.4,
-            episodes_per_node_per_period: 0.01,
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.05),
+                (Metric::Power, 1.0),
+                (Metric::Mileage, 0.05),
+                (Metric::MaxStress, 1.5e4),
+                (Metric::MaxStrain, 0.1),
+                (Metric::StuckFraction, 0.02),
+                (Metric::MeanFrictionSelection, 0.4),
+                (Metric::EpisodesPerNodePerPeriod, 0.01),
+            ]),
         }
     }
 
@@ -339,7 +331,7 @@ mod tests {
         let f = facts();
         super::metrics(&metrics(), &f).unwrap();
         let mut nan_mileage = metrics();
-        nan_mileage.mileage = None; // P = 0
+        nan_mileage.values.set(Metric::Mileage, None); // P = 0
         super::metrics(&nan_mileage, &f).unwrap();
         for (edit, needle) in [
             (
@@ -349,10 +341,16 @@ mod tests {
             (&|m: &mut Metrics| m.end = 4.0, "not after"),
             (&|m: &mut Metrics| m.start = -3.0, "start = -3"),
             (&|m: &mut Metrics| m.end = 9.5, "end = 9.5"),
-            (&|m: &mut Metrics| m.max_stress = -1.0, "max_stress = -1"),
-            (&|m: &mut Metrics| m.max_strain = -0.1, "max_strain = -0.1"),
             (
-                &|m: &mut Metrics| m.episodes_per_node_per_period = -1.0,
+                &|m: &mut Metrics| m.values.set(Metric::MaxStress, Some(-1.0)),
+                "max_stress = -1",
+            ),
+            (
+                &|m: &mut Metrics| m.values.set(Metric::MaxStrain, Some(-0.1)),
+                "max_strain = -0.1",
+            ),
+            (
+                &|m: &mut Metrics| m.values.set(Metric::EpisodesPerNodePerPeriod, Some(-1.0)),
                 "episodes_per_node_per_period = -1",
             ),
         ] {

@@ -1,5 +1,7 @@
 //! Entity paths of a crawler recording (what tests and users query).
 
+use crawler_facts::Metric;
+
 /// The body in space: `body/points` at `x + u`, `body/exaggerated` at `x + mean u + 10 (u - mean u)`,
 /// classed stick / slip.
 pub const BODY: &str = "body";
@@ -61,7 +63,7 @@ pub fn metric(metric: &str) -> String {
 }
 
 /// The series of `metric` from `source` (`plant`, `paper`, `improved`).
-pub fn metric_series(metric: &str, source: &str) -> String {
+pub fn metric_series(metric: Metric, source: &str) -> String {
     format!("metrics/{metric}/{source}")
 }
 
@@ -70,28 +72,20 @@ pub fn lane(i: usize) -> String {
     format!("{LANES}/node_{i:04}")
 }
 
-/// The metrics recorded per forcing period.
-pub const METRICS: [&str; 5] = [
-    "velocity",
-    "power",
-    "mileage",
-    "max_stress",
-    "stuck_fraction",
+/// The metrics recorded per forcing period (`metrics/<name>/<source>`).
+pub const METRICS: [Metric; 5] = [
+    Metric::Velocity,
+    Metric::Power,
+    Metric::Mileage,
+    Metric::MaxStress,
+    Metric::StuckFraction,
 ];
 
 /// The plant's final report (its `finished` status): `summary/<metric>` scalars and the report
 /// as a JSON document at `summary`.
 pub const SUMMARY_ROOT: &str = "summary";
 
-/// The metrics of the final report recorded as scalars (a mileage that is not a number, P = 0,
-/// is not recorded).
-pub const SUMMARY: [&str; 8] = [
-    "velocity",
-    "power",
-    "mileage",
-    "max_stress",
-    "max_strain",
-    "stuck_fraction",
-    "mean_friction_selection",
-    "dissipation",
-];
+/// The final report's scalars beside its metrics (every metric of the metric table is
+/// recorded as `summary/<name>`, a value that is not a number, such as the mileage at P = 0,
+/// not at all).
+pub const SUMMARY_EXTRA: [&str; 1] = ["dissipation"];

@@ -1,5 +1,6 @@
 //! The writer: turns protocol messages into Rerun entities, in step order, with decimation.
 
+use crawler_facts::Metric;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -879,10 +880,10 @@ impl Recorder {
                 format!(
                     "{}: V = {}, P = {}, M = {}, sigma = {} ({})",
                     m.model,
-                    opt(m.velocity),
-                    opt(m.power),
-                    opt(m.mileage),
-                    opt(m.max_stress),
+                    opt(m.values.get(Metric::Velocity)),
+                    opt(m.values.get(Metric::Power)),
+                    opt(m.values.get(Metric::Mileage)),
+                    opt(m.values.get(Metric::MaxStress)),
                     m.validity
                 )
             })
@@ -905,15 +906,8 @@ impl Recorder {
         }
         self.rec.set_time_sequence("step", m.step as i64);
         self.rec.set_duration_secs("sim_time", m.end);
-        let plant = [
-            m.velocity,
-            m.power,
-            m.mileage.unwrap_or(f64::NAN),
-            m.max_stress,
-            m.stuck_fraction,
-        ];
-        for (name, value) in paths::METRICS.iter().zip(plant) {
-            if value.is_finite() {
+        for name in paths::METRICS {
+            if let Some(value) = m.values.get(name) {
                 self.rec.log(
                     paths::metric_series(name, "plant"),
                     &rerun::Scalars::single(value),
@@ -921,15 +915,8 @@ impl Recorder {
             }
         }
         for p in &self.predictions {
-            let values = [
-                p.velocity,
-                p.power,
-                p.mileage,
-                p.max_stress,
-                p.stuck_fraction,
-            ];
-            for (name, value) in paths::METRICS.iter().zip(values) {
-                if let Some(v) = value.filter(|v| v.is_finite()) {
+            for name in paths::METRICS {
+                if let Some(v) = p.values.get(name) {
                     self.rec.log(
                         paths::metric_series(name, &p.model),
                         &rerun::Scalars::single(v),
@@ -1048,17 +1035,12 @@ impl Recorder {
     fn log_report(&mut self, r: &FinalReport) -> anyhow::Result<()> {
         let (step, time) = self.last_step_time;
         self.set_time(step, time);
-        let values = [
-            Some(r.velocity),
-            Some(r.power),
-            r.mileage,
-            Some(r.max_stress),
-            Some(r.max_strain),
-            Some(r.stuck_fraction),
-            Some(r.mean_friction_selection),
-            Some(r.dissipation),
-        ];
-        for (key, value) in paths::SUMMARY.iter().zip(values) {
+        let values = r.values.iter().map(|(m, x)| (m.name(), x)).chain(
+            paths::SUMMARY_EXTRA
+                .iter()
+                .map(|&k| (k, Some(r.dissipation))),
+        );
+        for (key, value) in values {
             if let Some(x) = value {
                 self.rec.log(
                     format!("{}/{key}", paths::SUMMARY_ROOT),

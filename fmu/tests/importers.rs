@@ -236,7 +236,7 @@ fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
     }
     assert_eq!(
         r["digest"].as_str().unwrap(),
-        crawler_plant::simulate::state_digest(slave.plant()),
+        crawler_plant::report::state_digest(slave.plant()),
         "ecos's run differs from the in-process slave"
     );
     let mean = slave.float64_scalar(crawler_plant::model_description::vr::MEAN_DISPLACEMENT);

@@ -15,7 +15,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use crawler_cli::Exit;
+use crawler_cli::{Exit, ScenarioArgs};
+
+use crate::children::{Auth, ControllerRun, PlantRun, Programs, RecorderRun};
+use crate::supervise::{first_failure, interrupt, interrupted_with, spawn, Proc};
 
 /// A case: name, what it is, the scenario (embedded, written next to the results).
 pub struct Case {
@@ -160,7 +163,8 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
         crawler_cli::number(a.run_timeout)
     );
     anyhow::ensure!(a.every >= 1, "invalid --every = 0: allowed 1 or more");
-    let dir = super::binaries()?;
+    let programs = Programs::here()?;
+    crate::recorder_binary::ensure(&programs)?;
     let interrupted = Arc::new(AtomicBool::new(false));
     {
         let flag = interrupted.clone();
@@ -177,7 +181,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
         std::fs::create_dir_all(a.out_dir.join(case.name))?;
         eprintln!("crawler: case {}: {}", case.name, case.about);
         for policy in &policies {
-            let row = run_one(&dir, &a, case, policy, &scenario, &interrupted);
+            let row = run_one(&programs, &a, case, policy, &scenario, &interrupted);
             match &row {
                 Ok(r) => eprintln!(
                     "crawler: {} / {}: {} ({:.1} s of wall time)",
@@ -227,7 +231,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn run_one(
-    dir: &Path,
+    programs: &Programs,
     a: &CompareArgs,
     case: &Case,
     policy: &str,
@@ -238,69 +242,61 @@ fn run_one(
     let run_id = format!("compare-{}-{}-{policy}", std::process::id(), case.name);
     let out = a.out_dir.join(case.name);
     let recording = out.join(format!("{policy}.rrd"));
-    let sc = scenario.display().to_string();
-    let plant_args: Vec<String> = vec![
-        "run".into(),
-        "--run-id".into(),
-        run_id.clone(),
-        "--scenario".into(),
-        sc.clone(),
-        "--task".into(),
-        "--t-end".into(),
-        a.t_end.to_string(),
-        "--json".into(),
-        "--wait-timeout".into(),
-        "300".into(),
-        "--checkpoint".into(),
-        out.join(format!("{policy}.ckpt")).display().to_string(),
-    ];
-    let bridge_args: Vec<String> = vec![
-        "record".into(),
-        "--run-id".into(),
-        run_id.clone(),
-        "--out".into(),
-        recording.display().to_string(),
-        "--every".into(),
-        a.every.to_string(),
-        "--idle-timeout".into(),
-        "300".into(),
-    ];
-    let mut ctl_args: Vec<String> = vec![
-        "run".into(),
-        "--run-id".into(),
-        run_id,
-        "--policy".into(),
-        policy.into(),
-        "--scenario".into(),
-        sc,
-        "--wait-timeout".into(),
-        "300".into(),
-    ];
-    ctl_args.extend(a.controller_args.iter().cloned());
-    let mut plant_args = plant_args;
-    if let Some(n) = a.cells {
-        plant_args.extend(["--cells".to_string(), n.to_string()]);
-    }
-    let mut plant = super::spawn("plant", &dir.join("crawler-plant"), &plant_args, None)?;
+    let flags = ScenarioArgs {
+        scenario: Some(scenario.to_path_buf()),
+        t_end: Some(a.t_end),
+        cells: a.cells,
+        task: true,
+        ..ScenarioArgs::default()
+    };
+    let checkpoint = out.join(format!("{policy}.ckpt"));
+    let plant = programs.plant(&PlantRun {
+        run_id: &run_id,
+        scenario: &flags,
+        resume: None,
+        wait_timeout: 300.0,
+        checkpoint: Some(&checkpoint),
+        json: true,
+        auth: &Auth::PlantMade,
+    });
+    let recorder = programs.recorder(&RecorderRun {
+        run_id: &run_id,
+        out: &recording,
+        every: a.every,
+        idle_timeout: 300.0,
+        auth: &Auth::PlantMade,
+        viewer: None,
+        viewer_exe: None,
+    });
+    // The controller's own scenario: the case's file (its task and wave), not the plant's grid.
+    let controller_flags = ScenarioArgs {
+        scenario: Some(scenario.to_path_buf()),
+        ..ScenarioArgs::default()
+    };
+    let controller = programs.controller(&ControllerRun {
+        run_id: &run_id,
+        policy,
+        params: &[],
+        scenario: &controller_flags,
+        wait_timeout: 300.0,
+        auth: &Auth::PlantMade,
+        extra: &a.controller_args,
+    });
+    let mut plant = spawn("plant", &plant.exe, &plant.args, None)?;
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-    let mut bridge = super::spawn(
-        "bridge",
-        &dir.join("crawler-bridge"),
-        &bridge_args,
+    let mut bridge = spawn(
+        "recorder",
+        &recorder.exe,
+        &recorder.args,
         Some(("plant found", ready_tx)),
     )?;
     let _ = ready_rx.recv_timeout(Duration::from_secs(30));
-    let mut controller = super::spawn(
-        "controller",
-        &dir.join("crawler-controller"),
-        &ctl_args,
-        None,
-    )?;
+    let mut controller = spawn("controller", &controller.exe, &controller.args, None)?;
     let deadline = started + Duration::from_secs_f64(a.run_timeout);
-    let stop = |why: &str, procs: &mut [&mut super::Proc]| {
+    let stop = |why: &str, procs: &mut [&mut Proc]| {
         for p in procs.iter_mut() {
             if p.ended().is_none() {
-                super::interrupt(&p.child);
+                interrupt(&p.child);
             }
         }
         for p in procs.iter_mut() {
@@ -309,8 +305,8 @@ fn run_one(
         anyhow::anyhow!("{why}")
     };
     loop {
-        let failed = super::first_failure(&mut [&mut plant, &mut controller, &mut bridge]);
-        if super::interrupted_with(interrupted, failed) {
+        let failed = first_failure(&mut [&mut plant, &mut controller, &mut bridge]);
+        if interrupted_with(interrupted, failed) {
             return Err(stop(
                 "interrupted",
                 &mut [&mut plant, &mut controller, &mut bridge],

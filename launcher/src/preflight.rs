@@ -4,6 +4,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use crate::children::Invocation;
+
 /// The recording path is usable: not a directory, its directory exists, and an existing file
 /// there is a file the recorder may replace (the recorder writes a temporary file and renames it
 /// into place only when the run produced a recording).
@@ -47,12 +49,12 @@ pub fn check_every(every: u64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Runs `exe args --check` (the program validates all of its inputs and exits); the error is
-/// the program's own message.
-pub fn check_child(name: &str, exe: &Path, args: &[String]) -> anyhow::Result<()> {
+/// Runs `check` (a program with `--check`: it validates all of its inputs and exits); the error
+/// is the program's own message.
+pub fn check_child(name: &str, check: &Invocation) -> anyhow::Result<()> {
+    let exe = &check.exe;
     let out = Command::new(exe)
-        .args(args)
-        .arg("--check")
+        .args(&check.args)
         .stdin(std::process::Stdio::null())
         .output()
         .map_err(|e| anyhow::anyhow!("cannot start {}: {e}", exe.display()))?;

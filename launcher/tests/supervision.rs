@@ -147,7 +147,7 @@ fn ctrl_c_stops_every_process_cleanly_and_the_run_resumes() {
     // x.rrd"); which comes first is a race between processes, and both are a clean close.
     assert!(
         err.lines()
-            .any(|l| l.starts_with("[bridge] crawler-bridge: ")
+            .any(|l| l.starts_with("[recorder] crawler-bridge: ")
                 && (l.contains("run finished; recording closed x.rrd")
                     || l.contains("interrupted; recording closed properly x.rrd"))),
         "{err}"

@@ -7,10 +7,10 @@
 //! message is counted under.
 
 use crawler_plant::error::ParamError;
+use crawler_plant::execution::Actuation;
 use crawler_plant::params::Boundary;
-use crawler_plant::slave::{Slave, SlaveError};
 use crawler_plant::wave::Wave;
-use crawler_protocol::{decode, Actuation, ProtocolError, Rejections, WaveMsg};
+use crawler_protocol::{decode, Actuation as ActuationMsg, ProtocolError, Rejections, WaveMsg};
 
 /// Why an actuation message was rejected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,15 +65,6 @@ impl Rejection {
     }
 }
 
-/// The muscle force a controller asked for, in the plant's terms: what the slave applies.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Command {
-    /// A travelling wave, evaluated continuously over the step.
-    Wave(Wave),
-    /// Muscle force at the half nodes, N, held over the step.
-    Field(Vec<f64>),
-}
-
 /// The plant's wave from its wire form (the numbers are checked where it is applied).
 pub fn wave_of(w: &WaveMsg) -> Wave {
     Wave {
@@ -84,30 +75,31 @@ pub fn wave_of(w: &WaveMsg) -> Wave {
     }
 }
 
-impl TryFrom<Actuation> for Command {
-    type Error = ProtocolError;
-
-    /// The command of an actuation that carries exactly one of `wave` and `field`.
-    fn try_from(a: Actuation) -> Result<Self, ProtocolError> {
-        match (a.wave, a.field) {
-            (Some(w), None) => Ok(Command::Wave(wave_of(&w))),
-            (None, Some(f)) => Ok(Command::Field(f)),
-            _ => Err(ProtocolError::invalid(
-                "actuation",
-                "wave and field both given or both missing",
-                "exactly one of wave and field",
-            )),
-        }
+/// The plant's actuation of a wire actuation that carries exactly one of `wave` and `field`.
+pub fn command_of(a: ActuationMsg) -> Result<Actuation, ProtocolError> {
+    match (a.wave, a.field) {
+        (Some(w), None) => Ok(Actuation::Wave(wave_of(&w))),
+        (None, Some(f)) => Ok(Actuation::Field(f)),
+        _ => Err(ProtocolError::invalid(
+            "actuation",
+            "wave and field both given or both missing",
+            "exactly one of wave and field",
+        )),
     }
 }
 
-impl Command {
-    /// Checks the command against a body of `cells` cells, `length` m and `boundary`: a field
-    /// has one finite value per cell, a wave is valid and fits the body (what the slave checks).
-    pub fn check(&self, cells: usize, length: f64, boundary: Boundary) -> Result<(), ParamError> {
-        match self {
-            Command::Wave(w) => w.validate_for_body(length, cells, boundary),
-            Command::Field(f) => {
+/// Checks `command` against a body of `cells` cells, `length` m and `boundary`: a field has one
+/// finite value per cell, a wave is valid and fits the body (what the slave checks).
+pub fn check(
+    command: &Actuation,
+    cells: usize,
+    length: f64,
+    boundary: Boundary,
+) -> Result<(), ParamError> {
+    {
+        match command {
+            Actuation::Wave(w) => w.validate_for_body(length, cells, boundary),
+            Actuation::Field(f) => {
                 if f.len() != cells {
                     return Err(ParamError::new(
                         "actuation.field",
@@ -124,14 +116,6 @@ impl Command {
                     None => Ok(()),
                 }
             }
-        }
-    }
-
-    /// Sets the command as the slave's input for its next step.
-    pub fn apply(&self, slave: &mut Slave) -> Result<(), SlaveError> {
-        match self {
-            Command::Wave(w) => slave.set_wave(*w),
-            Command::Field(f) => slave.set_field(f),
         }
     }
 }
@@ -164,7 +148,7 @@ impl Admission {
 
     /// Decodes and checks `bytes` as the answer of controller `joined` to the state of step
     /// `step`. The command returned can be applied as is; a rejected message is counted.
-    pub fn admit(&mut self, bytes: &[u8], step: u64, joined: &str) -> Result<Command, Rejection> {
+    pub fn admit(&mut self, bytes: &[u8], step: u64, joined: &str) -> Result<Actuation, Rejection> {
         self.classify(bytes, step, joined)
             .map_err(|(kind, reason)| {
                 let count = kind.counter(&mut self.rejections);
@@ -177,8 +161,8 @@ impl Admission {
             })
     }
 
-    fn classify(&self, bytes: &[u8], n: u64, joined: &str) -> Result<Command, (Reject, String)> {
-        let a: Actuation = decode(bytes).map_err(|e| (cause(&e), e.to_string()))?;
+    fn classify(&self, bytes: &[u8], n: u64, joined: &str) -> Result<Actuation, (Reject, String)> {
+        let a: ActuationMsg = decode(bytes).map_err(|e| (cause(&e), e.to_string()))?;
         if a.controller != joined {
             return Err((
                 Reject::Foreign,
@@ -205,9 +189,8 @@ impl Admission {
                 format!("actuation for step {} while at step {n}", a.step),
             ));
         }
-        let command = Command::try_from(a).map_err(|e| (cause(&e), e.to_string()))?;
-        command
-            .check(self.cells, self.length, self.boundary)
+        let command = command_of(a).map_err(|e| (cause(&e), e.to_string()))?;
+        check(&command, self.cells, self.length, self.boundary)
             .map_err(|e| (Reject::Invalid, e.to_string()))?;
         Ok(command)
     }
@@ -226,6 +209,7 @@ fn cause(e: &ProtocolError) -> Reject {
 mod tests {
     use super::*;
     use crawler_plant::scenario::Scenario;
+    use crawler_plant::slave::Slave;
     use crawler_protocol::{encode, PROTOCOL_VERSION};
     use proptest::prelude::*;
     use std::f64::consts::TAU;
@@ -242,8 +226,8 @@ mod tests {
         }
     }
 
-    fn actuation(step: u64, controller: &str) -> Actuation {
-        Actuation {
+    fn actuation(step: u64, controller: &str) -> ActuationMsg {
+        ActuationMsg {
             v: PROTOCOL_VERSION,
             step,
             controller: controller.into(),
@@ -266,7 +250,7 @@ mod tests {
         let got = admission().admit(&encode(&a), 7, "c1").unwrap();
         assert_eq!(
             got,
-            Command::Wave(Wave {
+            Actuation::Wave(Wave {
                 f0: 0.05,
                 k: TAU / LENGTH,
                 omega: 300.0,
@@ -274,24 +258,24 @@ mod tests {
             })
         );
         let field: Vec<f64> = (0..CELLS).map(|i| i as f64 * 1e-3).collect();
-        let a = Actuation {
+        let a = ActuationMsg {
             wave: None,
             field: Some(field.clone()),
             ..actuation(7, "c1")
         };
         assert_eq!(
             admission().admit(&encode(&a), 7, "c1").unwrap(),
-            Command::Field(field)
+            Actuation::Field(field)
         );
     }
 
     #[test]
     fn each_fault_is_rejected_under_its_cause() {
         let n = 10;
-        let bytes = |a: &Actuation| encode(a);
+        let bytes = |a: &ActuationMsg| encode(a);
         assert_eq!(kind(&[0xc1, 0x00], n), Reject::Malformed);
         assert_eq!(kind(&bytes(&actuation(n, "c1"))[..5], n), Reject::Malformed);
-        let other_version = Actuation {
+        let other_version = ActuationMsg {
             v: PROTOCOL_VERSION + 1,
             ..actuation(n, "c1")
         };
@@ -303,45 +287,45 @@ mod tests {
         assert_eq!(kind(&bytes(&actuation(n + 1, "c1")), n), Reject::Future);
         let invalid = [
             // a wavelength that does not fit the body
-            Actuation {
+            ActuationMsg {
                 wave: Some(wave(1.5 * TAU / LENGTH)),
                 ..actuation(n, "c1")
             },
             // fewer than 8 cells per wavelength
-            Actuation {
+            ActuationMsg {
                 wave: Some(wave(16.0 * TAU / LENGTH)),
                 ..actuation(n, "c1")
             },
-            Actuation {
+            ActuationMsg {
                 wave: Some(WaveMsg {
                     f0: -1.0,
                     ..wave(TAU / LENGTH)
                 }),
                 ..actuation(n, "c1")
             },
-            Actuation {
+            ActuationMsg {
                 wave: Some(WaveMsg {
                     omega: f64::NAN,
                     ..wave(TAU / LENGTH)
                 }),
                 ..actuation(n, "c1")
             },
-            Actuation {
+            ActuationMsg {
                 wave: None,
                 field: Some(vec![0.0; CELLS + 1]),
                 ..actuation(n, "c1")
             },
-            Actuation {
+            ActuationMsg {
                 wave: None,
                 field: Some(vec![f64::INFINITY; CELLS]),
                 ..actuation(n, "c1")
             },
-            Actuation {
+            ActuationMsg {
                 wave: None,
                 field: None,
                 ..actuation(n, "c1")
             },
-            Actuation {
+            ActuationMsg {
                 field: Some(vec![0.0; CELLS]),
                 ..actuation(n, "c1")
             },
@@ -357,12 +341,12 @@ mod tests {
     fn the_sender_is_checked_before_the_step_and_the_step_before_the_body() {
         // A foreign message for an old step is foreign, and a stale one with bad values is
         // stale: the counts say who sent what, not which check came first by chance.
-        let bad = Actuation {
+        let bad = ActuationMsg {
             wave: Some(wave(1.5 * TAU / LENGTH)),
             ..actuation(3, "intruder")
         };
         assert_eq!(kind(&encode(&bad), 9), Reject::Foreign);
-        let bad = Actuation {
+        let bad = ActuationMsg {
             wave: Some(wave(1.5 * TAU / LENGTH)),
             ..actuation(3, "c1")
         };
@@ -433,7 +417,7 @@ mod tests {
             free in any::<bool>(),
         ) {
             let boundary = if free { Boundary::Free } else { Boundary::Periodic };
-            let a = Actuation {
+            let a = ActuationMsg {
                 wave: (!field).then_some(WaveMsg { f0, k: m * TAU / LENGTH, omega, phase: 0.3 }),
                 field: field.then(|| vec![0.01; len]),
                 ..actuation(4, "c1")

@@ -8,8 +8,8 @@ use crawler_protocol::Rejections;
 
 use crawler_plant::framing;
 use crawler_plant::plant::{Plant, PlantState};
+use crawler_plant::report::EpisodeLog;
 use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::EpisodeLog;
 use crawler_plant::task::TaskTracker;
 
 const MAGIC: &[u8; 8] = b"CRWLCKPT";

@@ -11,28 +11,34 @@
 //! The state machine reads an [`Inbox`] and writes to an [`Outbox`]; [`run`] connects them to
 //! the zenoh [`Link`], tests to channels.
 
+use std::cell::RefCell;
 use std::path::PathBuf;
+use std::rc::Rc;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, Sender};
 
 use crawler_cli::Exit;
+use crawler_facts::Metric;
+use crawler_plant::execution::{
+    Actuation, Briefing, Controller, Execution, ExecutionError, Observation, Observer, Resume,
+    Start, Stepped,
+};
 use crawler_plant::model_description::ModelDescription;
 use crawler_plant::plant::{Drive, Plant};
+use crawler_plant::report::Report;
 use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::{mean_position, report_with_task, EpisodeLog, Report};
-use crawler_plant::slave::{Slave, StepStatus};
-use crawler_plant::task::TaskTracker;
 use crawler_protocol::{
     encode, Applied, Environment, EpisodeMsg, Events, FinalReport, Metrics as MetricsMsg,
     ModelInfo, ProcessState, Rejections, Role, RunLimits, State, Status, WaveMsg, PROTOCOL_VERSION,
 };
-use crawler_transport::Network;
+use crawler_transport::Network as NetworkSpec;
 
 use crate::access::PlantAccess;
 use crate::admission::{Admission, Rejection};
 use crate::checkpoint::Checkpoint;
 use crate::link::{Control, Inbox, Link, Outbox, Topic};
+use crate::wire::wire_report;
 
 /// Republish the current state if no valid answer came within this time.
 const RESEND: Duration = Duration::from_millis(500);
@@ -45,7 +51,7 @@ pub struct RunOptions {
     /// The scenario (ignored when resuming: the checkpoint's is used).
     pub scenario: Scenario,
     /// Where the run's processes meet.
-    pub network: Network,
+    pub network: NetworkSpec,
     /// How long to wait for a controller to join, s.
     pub wait_timeout: Duration,
     /// How long to wait for the answer to one state, s.
@@ -119,98 +125,86 @@ pub fn run(
     outcome
 }
 
-/// The run's state machine: the slave, the clock's end, the bookkeeping of a checkpoint.
+/// The run's state machine: the execution (slave, clock, task, episode log), the admission of
+/// the controller's answers and the bookkeeping of a checkpoint.
 pub struct Runner {
-    slave: Slave,
+    execution: Execution,
     scenario: Scenario,
-    last_step: u64,
-    log: EpisodeLog,
-    admission: Admission,
+    admission: Rc<RefCell<Admission>>,
     joined: Option<String>,
     opts: RunOptions,
     id: String,
-    tension: Vec<f64>,
-    /// Progress against the scenario's task (it ends the run in task mode).
-    task: TaskTracker,
 }
 
 impl Runner {
     /// The plant of `opts` (fresh, or restored from its checkpoint), ready to run as process `id`.
     pub fn new(opts: RunOptions, id: String) -> anyhow::Result<Self> {
-        let (scenario, state, log, rejections, last_step) = match &opts.resume {
-            Some(c) => (
-                c.scenario.clone(),
-                Some(c.state.clone()),
-                c.log.clone(),
-                c.rejections,
-                c.last_step,
-            ),
-            None => {
-                let s = opts.scenario.clone();
-                let last = s.plant.discretisation()?.steps_until(s.t_end);
-                (
-                    s,
-                    None,
-                    EpisodeLog::new(opts.max_episodes),
-                    Rejections::default(),
-                    last,
-                )
+        let (scenario, execution, rejections) = match &opts.resume {
+            Some(c) => {
+                let resume = Resume {
+                    state: c.state.clone(),
+                    log: c.log.clone(),
+                    task: c.task,
+                    last_step: c.last_step,
+                };
+                let execution = Execution::resume(&c.scenario, resume)?;
+                (c.scenario.clone(), execution, c.rejections)
             }
-        };
-        let mut slave = Slave::instantiate("crawler-plant", scenario.plant.clone())?;
-        slave.enter_initialization_mode(0.0, None)?;
-        slave.exit_initialization_mode()?;
-        if let Some(st) = &state {
-            slave.set_state(st)?;
-        }
-        slave.set_stress_limit(Some(scenario.task.sigma_max))?;
-        let task = match &opts.resume {
-            Some(c) => c.task,
-            None => TaskTracker::new(
-                scenario.task,
-                slave.plant().time(),
-                mean_position(slave.plant()),
-            ),
+            None => {
+                let start = Start {
+                    actuation: None,
+                    max_episodes: opts.max_episodes,
+                };
+                let execution = Execution::new(&opts.scenario, start)?;
+                (opts.scenario.clone(), execution, Rejections::default())
+            }
         };
         let p = &scenario.plant;
         Ok(Self {
-            task,
-            tension: Vec::with_capacity(p.numerics.cells),
-            admission: Admission::new(p.numerics.cells, p.length, p.boundary, rejections),
-            slave,
+            admission: Rc::new(RefCell::new(Admission::new(
+                p.numerics.cells,
+                p.length,
+                p.boundary,
+                rejections,
+            ))),
+            execution,
             scenario,
-            last_step,
-            log,
             joined: None,
             opts,
             id,
         })
     }
 
-    /// The plant's description, answered to `model` queries.
+    /// What controllers are told ([`Briefing`]: nominal friction and no map unless the pipe is
+    /// disclosed), answered to `model` queries.
     pub fn model_info(&self) -> ModelInfo {
-        // What controllers are told: nominal friction and no map unless the pipe is disclosed.
-        let p = self.scenario.plant.told();
-        let md = ModelDescription::new(&p);
+        let plant = self.plant();
+        let b = Briefing::at(
+            &self.scenario,
+            plant.start_time(),
+            self.execution.last_step(),
+            plant.step_length(),
+        );
+        let md = ModelDescription::new(&self.scenario.plant.told());
         ModelInfo {
             v: PROTOCOL_VERSION,
             run: self.opts.network.run_id.clone(),
-            cells: p.numerics.cells as u64,
-            length: p.length,
-            step: self.plant().step_length(),
-            start_time: self.plant().start_time(),
-            last_step: self.last_step,
-            area: p.body.area,
-            density: p.body.density,
-            youngs_modulus: p.body.youngs_modulus,
-            viscous: p.friction.viscous,
-            dry: p.friction.dry,
-            eps: p.friction.eps,
-            n_f: p.friction.n_f,
-            settle: p.numerics.settle,
+            cells: b.cells as u64,
+            length: b.length,
+            step: b.step,
+            start_time: b.start_time,
+            last_step: b.last_step,
+            area: b.body.area,
+            density: b.body.density,
+            youngs_modulus: b.body.youngs_modulus,
+            viscous: b.friction.viscous,
+            dry: b.friction.dry,
+            eps: b.friction.eps,
+            n_f: b.friction.n_f,
+            settle: b.settle,
             model_description: md.to_json(),
-            boundary: p.boundary.as_str().to_string(),
-            disclosed: p.pipe.disclose,
+            boundary: b.boundary.as_str().to_string(),
+            disclosed: b.disclosed,
         }
     }
 
@@ -222,7 +216,7 @@ impl Runner {
     }
 
     fn plant(&self) -> &Plant {
-        self.slave.plant()
+        self.execution.plant()
     }
 
     fn run_id(&self) -> &str {
@@ -232,13 +226,7 @@ impl Runner {
     /// Everything rejected so far: by admission, and at arrival (an oversized payload counts as
     /// malformed, an unsealed one as foreign, one beyond the inbox's budget as overflow).
     fn rejected(&self, inbox: &Inbox) -> Rejections {
-        let r = self.admission.rejections();
-        Rejections {
-            malformed: r.malformed + inbox.refused.oversize(),
-            foreign: r.foreign + inbox.refused.unsealed(),
-            overflow: r.overflow + inbox.overflow(),
-            ..r
-        }
+        rejected(&self.admission.borrow(), inbox)
     }
 
     fn status(
@@ -248,19 +236,8 @@ impl Runner {
         message: &str,
         step: u64,
         rejected: Rejections,
-        report: Option<FinalReport>,
     ) {
-        let s = Status {
-            v: PROTOCOL_VERSION,
-            role: Role::Plant,
-            id: self.id.clone(),
-            state,
-            message: message.into(),
-            step,
-            rejected,
-            report,
-        };
-        out.put(Topic::Status, encode(&s));
+        publish_status(out, &self.id, (state, message, step), rejected, None);
     }
 
     fn stop(
@@ -270,15 +247,16 @@ impl Runner {
         reason: String,
         exit: Exit,
     ) -> anyhow::Result<Outcome> {
+        let resume = self.execution.resume_point();
         let ckpt = Checkpoint {
             run_id: self.run_id().to_string(),
             scenario: self.scenario.clone(),
-            last_step: self.last_step,
-            state: self.slave.get_state(),
-            log: self.log.clone(),
+            last_step: resume.last_step,
+            state: resume.state,
+            log: resume.log,
             rejections: self.rejected(inbox),
             reason: reason.clone(),
-            task: self.task,
+            task: resume.task,
         };
         // Before a controller joins nothing has been simulated: no checkpoint (a resumed run's
         // own checkpoint stays as it was).
@@ -305,99 +283,12 @@ impl Runner {
             &message,
             self.plant().macro_step(),
             self.rejected(inbox),
-            None,
         );
         Ok(Outcome::Stopped {
             reason,
             checkpoint: path,
             exit,
         })
-    }
-
-    fn publish_state(&mut self, out: &impl Outbox) -> usize {
-        let plant = self.slave.plant();
-        let n = plant.macro_step();
-        self.tension.clear();
-        self.tension.extend(plant.tension());
-        let s = State {
-            v: PROTOCOL_VERSION,
-            step: n,
-            time: plant.time(),
-            controller: self.joined.clone().unwrap_or_default(),
-            u: plant.displacement().to_vec(),
-            vel: plant.velocity().to_vec(),
-            tension: self.tension.clone(),
-            stuck: plant.stuck().to_vec(),
-            mean_speed: plant.outputs().mean_speed,
-            input_power: plant.outputs().input_power,
-            last: n >= self.last_step,
-            applied: applied(plant),
-        };
-        let bytes = encode(&s);
-        let len = bytes.len();
-        out.put(Topic::State, bytes);
-        len
-    }
-
-    fn publish_step_outputs(&self, out: &impl Outbox) {
-        let plant = self.plant();
-        let n = plant.macro_step();
-        // At most N episodes per message, the run's legal size (rarely more than one message).
-        let per_message = RunLimits::new(plant.cells()).episodes_per_message();
-        for chunk in plant.episodes().chunks(per_message) {
-            let ev = Events {
-                v: PROTOCOL_VERSION,
-                step: n,
-                time: plant.time(),
-                episodes: chunk
-                    .iter()
-                    .map(|e| EpisodeMsg {
-                        node: e.node,
-                        start: e.start,
-                        end: e.end,
-                        duration: e.duration,
-                        direction: e.direction,
-                    })
-                    .collect(),
-            };
-            out.put(Topic::Events, encode(&ev));
-        }
-        for b in plant.closed_blocks() {
-            let m = b.sums.metrics(
-                plant.cells(),
-                plant.discretisation().dt,
-                plant.params().body.area,
-                plant.block_length(),
-            );
-            let msg = MetricsMsg {
-                v: PROTOCOL_VERSION,
-                step: n,
-                block: b.index,
-                steady: b.steady,
-                start: m.start,
-                end: m.end,
-                velocity: m.velocity,
-                power: m.power,
-                mileage: Some(m.mileage).filter(|x| x.is_finite()),
-                max_stress: m.max_stress,
-                max_strain: m.max_strain,
-                stuck_fraction: m.stuck_fraction,
-                mean_friction_selection: m.mean_friction_selection,
-                episodes_per_node_per_period: m.episodes_per_node_per_period,
-            };
-            if msg.velocity.is_finite() && msg.power.is_finite() {
-                out.put(Topic::Metrics, encode(&msg));
-            }
-        }
-    }
-
-    fn warn(rejection: &Rejection) {
-        if rejection.worth_reporting() {
-            eprintln!(
-                "crawler-plant: rejected actuation ({:?}, #{}): {}",
-                rejection.kind, rejection.count, rejection.reason
-            );
-        }
     }
 
     fn wait_for_controller(
@@ -418,7 +309,6 @@ impl Runner {
             &what,
             self.plant().macro_step(),
             self.rejected(inbox),
-            None,
         );
         let deadline = Instant::now() + self.opts.wait_timeout;
         loop {
@@ -452,17 +342,15 @@ impl Runner {
             Ok(id) => id,
             Err(outcome) => return outcome,
         };
+        let last_step = self.execution.last_step();
         eprintln!(
-            "crawler-plant: controller {joined} joined run {}; stepping to step {}",
-            self.run_id(),
-            self.last_step
+            "crawler-plant: controller {joined} joined run {}; stepping to step {last_step}",
+            self.run_id()
         );
         self.joined = Some(joined.clone());
-        let h = self.plant().step_length();
         let first = self.plant().macro_step();
         let started = Instant::now();
-        let mut state_bytes;
-        let bar = crawler_cli::progress::bar(self.last_step, "co-simulating");
+        let bar = crawler_cli::progress::bar(last_step, "co-simulating");
         bar.set_position(first);
         self.status(
             out,
@@ -470,132 +358,66 @@ impl Runner {
             &format!("controller {joined} joined"),
             first,
             self.rejected(inbox),
-            None,
         );
-        let mut last_status = Instant::now();
-        // When the joined controller's last valid answer arrived: how fast a lost controller is
-        // noticed is measured from there.
-        let mut last_answer = Instant::now();
-        loop {
-            state_bytes = self.publish_state(out);
-            let n = self.plant().macro_step();
-            if n >= self.last_step {
-                break;
+        let state = Rc::new(RefCell::new(Vec::new()));
+        let mut publisher = Publisher {
+            out,
+            inbox,
+            admission: self.admission.clone(),
+            id: &self.id,
+            joined: &joined,
+            state: state.clone(),
+            tension: Vec::with_capacity(self.plant().cells()),
+            bar: &bar,
+            last_status: Instant::now(),
+            announced: false,
+        };
+        publisher.publish_state(self.execution.plant(), last_step);
+        let mut network = JoinedController {
+            inbox,
+            out,
+            admission: self.admission.clone(),
+            joined: &joined,
+            step_timeout: self.opts.step_timeout,
+            state,
+            last_answer: Instant::now(),
+        };
+        let observers: &mut [&mut dyn Observer] = &mut [&mut publisher];
+        let result = self.execution.run(&mut network, observers);
+        let state_bytes = network.state.borrow().len();
+        match result {
+            Ok(()) => {}
+            Err(ExecutionError::Stopped(Stop { reason, exit })) => {
+                bar.abandon();
+                return self.stop(inbox, out, reason, exit);
             }
-            // Wait for the joined controller's answer to State(n).
-            let deadline = Instant::now() + self.opts.step_timeout;
-            let mut resend = Instant::now() + RESEND;
-            let command = loop {
-                let now = Instant::now();
-                if now >= deadline {
-                    let reason = format!(
-                        "controller {joined} did not answer step {n} within {:.1} s",
-                        self.opts.step_timeout.as_secs_f64()
-                    );
-                    bar.abandon();
-                    return self.stop(inbox, out, reason, Exit::Timeout);
-                }
-                let wake = resend.min(deadline);
-                crossbeam_channel::select! {
-                    recv(inbox.control) -> ev => match ev {
-                        Ok(Control::ControllerDown(id)) if id == joined => {
-                            bar.abandon();
-                            let reason = format!(
-                                "controller {joined} left the run at step {n} (its liveliness token disappeared {} ms after its last answer)",
-                                last_answer.elapsed().as_millis()
-                            );
-                            return self.stop(inbox, out, reason, Exit::PeerLost);
-                        }
-                        Ok(Control::Interrupt) => {
-                            bar.abandon();
-                            return self.stop(inbox, out, format!("interrupted at step {n}"), Exit::Interrupted);
-                        }
-                        Ok(Control::ControllerUp(id)) if id != joined => {
-                            eprintln!("crawler-plant: another controller {id} appeared; the run keeps {joined} and rejects the others");
-                        }
-                        _ => {}
-                    },
-                    recv(inbox.data) -> bytes => {
-                        let Ok(bytes) = bytes else { continue };
-                        match self.admission.admit(bytes.get(), n, &joined) {
-                            Ok(command) => {
-                                last_answer = Instant::now();
-                                break command;
-                            }
-                            Err(rejection) => Self::warn(&rejection),
-                        }
-                    },
-                    default(wake.saturating_duration_since(now)) => {
-                        if Instant::now() >= resend {
-                            let _ = self.publish_state(out);
-                            resend = Instant::now() + RESEND;
-                        }
-                    },
-                }
-            };
-            // Apply and step.
-            if let Err(e) = command.apply(&mut self.slave) {
+            Err(ExecutionError::Discarded { step, reason, .. }) => {
+                bar.abandon();
+                let reason = format!("step {step} discarded: {reason}");
+                return self.stop(inbox, out, reason, Exit::Failure);
+            }
+            Err(ExecutionError::Refused { source, .. }) => {
                 // Admission checked everything set_* checks, so this is a bug, not bad input.
-                anyhow::bail!("internal error: validated actuation refused by the slave: {e}");
+                anyhow::bail!("internal error: validated actuation refused by the slave: {source}");
             }
-            match self.slave.do_step(self.plant().time(), h) {
-                StepStatus::Ok => {}
-                StepStatus::Discard { reason, .. } => {
-                    bar.abandon();
-                    let reason = format!("step {n} discarded: {reason}");
-                    return self.stop(inbox, out, reason, Exit::Failure);
-                }
-                StepStatus::Error(e) => anyhow::bail!("step {n} failed: {e}"),
-            }
-            self.log.observe(self.slave.plant());
-            let plant = self.slave.plant();
-            let decided =
-                self.task
-                    .observe(plant.time(), h, mean_position(plant), &plant.outputs());
-            if let (true, Some(outcome)) = (self.scenario.task.end_run, decided) {
-                // Task mode: this step is the run's last; the next state says so.
-                if self.last_step > n + 1 {
-                    eprintln!(
-                        "crawler-plant: task {} at step {}; the run ends there",
-                        outcome.as_str(),
-                        n + 1
-                    );
-                    self.last_step = n + 1;
-                }
-            }
-            self.publish_step_outputs(out);
-            if n.is_multiple_of(64) {
-                bar.set_position(n + 1);
-            }
-            if last_status.elapsed() >= STATUS_EVERY {
-                self.status(
-                    out,
-                    ProcessState::Running,
-                    &format!("step {} of {}", n + 1, self.last_step),
-                    n + 1,
-                    self.rejected(inbox),
-                    None,
-                );
-                last_status = Instant::now();
-            }
+            Err(e) => anyhow::bail!("{e}"),
         }
         bar.finish_and_clear();
-        let steps = self.last_step - first;
+        let last_step = self.execution.last_step();
+        let steps = last_step - first;
         let secs = started.elapsed().as_secs_f64();
         eprintln!(
             "crawler-plant: lockstep: {steps} steps in {secs:.3} s ({:.0} steps/s, {state_bytes} bytes per state)",
             steps as f64 / secs
         );
-        let rep = report_with_task(
-            &self.scenario.name,
-            self.plant(),
-            &self.log,
-            Some(&self.task),
-        );
-        // The report on the wire: the library's report in the protocol's terms (without the
-        // episode list: the events stream carried every episode).
+        self.finish(inbox, out)
+    }
+
+    /// The report, on the wire in the plant's `finished` status and as the outcome.
+    fn finish(&self, inbox: &Inbox, out: &impl Outbox) -> anyhow::Result<Outcome> {
+        let rep = self.execution.report();
         let report = match &rep {
-            Ok(r) => match FinalReport::try_from(r) {
+            Ok(r) => match wire_report(r) {
                 Ok(w) => Some(w),
                 Err(e) => {
                     eprintln!("crawler-plant: the final report cannot go on the wire: {e}");
@@ -605,16 +427,15 @@ impl Runner {
             Err(_) => None,
         };
         let rejected = self.rejected(inbox);
+        let last_step = self.execution.last_step();
         let message = format!(
-            "finished at step {}; rejected actuation: {}",
-            self.last_step,
+            "finished at step {last_step}; rejected actuation: {}",
             rejected.total()
         );
-        self.status(
+        publish_status(
             out,
-            ProcessState::Finished,
-            &message,
-            self.last_step,
+            &self.id,
+            (ProcessState::Finished, &message, last_step),
             rejected,
             report,
         );
@@ -622,6 +443,259 @@ impl Runner {
             eprintln!("crawler-plant: rejected actuation messages: {rejected:?}");
         }
         Ok(Outcome::Finished(Box::new(rep?)))
+    }
+}
+
+/// Everything rejected so far: by `admission`, and at arrival (an oversized payload counts as
+/// malformed, an unsealed one as foreign, one beyond the inbox's budget as overflow).
+fn rejected(admission: &Admission, inbox: &Inbox) -> Rejections {
+    let r = admission.rejections();
+    Rejections {
+        malformed: r.malformed + inbox.refused.oversize(),
+        foreign: r.foreign + inbox.refused.unsealed(),
+        overflow: r.overflow + inbox.overflow(),
+        ..r
+    }
+}
+
+/// Publishes the plant's status `(state, message, step)`.
+fn publish_status(
+    out: &impl Outbox,
+    id: &str,
+    (state, message, step): (ProcessState, &str, u64),
+    rejected: Rejections,
+    report: Option<FinalReport>,
+) {
+    let s = Status {
+        v: PROTOCOL_VERSION,
+        role: Role::Plant,
+        id: id.to_string(),
+        state,
+        message: message.into(),
+        step,
+        rejected,
+        report,
+    };
+    out.put(Topic::Status, encode(&s));
+}
+
+/// Why the network controller stopped the run, and the exit code it means.
+struct Stop {
+    reason: String,
+    exit: Exit,
+}
+
+/// The joined controller as the execution's controller: waits for its answer to each state
+/// (the state itself is published by the [`Publisher`]), resending the state while none comes.
+struct JoinedController<'a, O: Outbox> {
+    inbox: &'a Inbox,
+    out: &'a O,
+    admission: Rc<RefCell<Admission>>,
+    joined: &'a str,
+    step_timeout: Duration,
+    /// The last state published, encoded (resent from here).
+    state: Rc<RefCell<Vec<u8>>>,
+    /// When the joined controller's last valid answer arrived: how fast a lost controller is
+    /// noticed is measured from there.
+    last_answer: Instant,
+}
+
+impl<O: Outbox> Controller for JoinedController<'_, O> {
+    type Stop = Stop;
+
+    fn act(&mut self, obs: &Observation<'_>) -> Result<Option<Actuation>, Stop> {
+        let n = obs.step;
+        let joined = self.joined;
+        let deadline = Instant::now() + self.step_timeout;
+        let mut resend = Instant::now() + RESEND;
+        loop {
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(Stop {
+                    reason: format!(
+                        "controller {joined} did not answer step {n} within {:.1} s",
+                        self.step_timeout.as_secs_f64()
+                    ),
+                    exit: Exit::Timeout,
+                });
+            }
+            let wake = resend.min(deadline);
+            crossbeam_channel::select! {
+                recv(self.inbox.control) -> ev => match ev {
+                    Ok(Control::ControllerDown(id)) if id == joined => {
+                        return Err(Stop {
+                            reason: format!(
+                                "controller {joined} left the run at step {n} (its liveliness token disappeared {} ms after its last answer)",
+                                self.last_answer.elapsed().as_millis()
+                            ),
+                            exit: Exit::PeerLost,
+                        });
+                    }
+                    Ok(Control::Interrupt) => {
+                        return Err(Stop {
+                            reason: format!("interrupted at step {n}"),
+                            exit: Exit::Interrupted,
+                        });
+                    }
+                    Ok(Control::ControllerUp(id)) if id != joined => {
+                        eprintln!("crawler-plant: another controller {id} appeared; the run keeps {joined} and rejects the others");
+                    }
+                    _ => {}
+                },
+                recv(self.inbox.data) -> bytes => {
+                    let Ok(bytes) = bytes else { continue };
+                    let admitted = self.admission.borrow_mut().admit(bytes.get(), n, joined);
+                    match admitted {
+                        Ok(command) => {
+                            self.last_answer = Instant::now();
+                            return Ok(Some(command));
+                        }
+                        Err(rejection) => warn(&rejection),
+                    }
+                },
+                default(wake.saturating_duration_since(now)) => {
+                    if Instant::now() >= resend {
+                        self.out.put(Topic::State, self.state.borrow().clone());
+                        resend = Instant::now() + RESEND;
+                    }
+                },
+            }
+        }
+    }
+}
+
+fn warn(rejection: &Rejection) {
+    if rejection.worth_reporting() {
+        eprintln!(
+            "crawler-plant: rejected actuation ({:?}, #{}): {}",
+            rejection.kind, rejection.count, rejection.reason
+        );
+    }
+}
+
+/// Publishes what each step produced (its episodes, the blocks it closed, the next state) and
+/// the progress, as an observer of the execution.
+struct Publisher<'a, O: Outbox> {
+    out: &'a O,
+    inbox: &'a Inbox,
+    admission: Rc<RefCell<Admission>>,
+    id: &'a str,
+    joined: &'a str,
+    /// The last state published, encoded (the network controller resends it).
+    state: Rc<RefCell<Vec<u8>>>,
+    tension: Vec<f64>,
+    bar: &'a crawler_cli::progress::ProgressBar,
+    last_status: Instant,
+    /// True once the end of the run by its task was said.
+    announced: bool,
+}
+
+impl<O: Outbox> Publisher<'_, O> {
+    fn publish_state(&mut self, plant: &Plant, last_step: u64) {
+        let n = plant.macro_step();
+        self.tension.clear();
+        self.tension.extend(plant.tension());
+        let out = plant.outputs();
+        let s = State {
+            v: PROTOCOL_VERSION,
+            step: n,
+            time: plant.time(),
+            controller: self.joined.to_string(),
+            u: plant.displacement().to_vec(),
+            vel: plant.velocity().to_vec(),
+            tension: self.tension.clone(),
+            stuck: plant.stuck().to_vec(),
+            mean_speed: out.mean_speed,
+            input_power: out.input_power,
+            last: n >= last_step,
+            applied: applied(plant),
+        };
+        let bytes = encode(&s);
+        self.out.put(Topic::State, bytes.clone());
+        *self.state.borrow_mut() = bytes;
+    }
+
+    fn publish_step_outputs(&self, plant: &Plant) {
+        let n = plant.macro_step();
+        // At most N episodes per message, the run's legal size (rarely more than one message).
+        let per_message = RunLimits::new(plant.cells()).episodes_per_message();
+        for chunk in plant.episodes().chunks(per_message) {
+            let ev = Events {
+                v: PROTOCOL_VERSION,
+                step: n,
+                time: plant.time(),
+                episodes: chunk
+                    .iter()
+                    .map(|e| EpisodeMsg {
+                        node: e.node,
+                        start: e.start,
+                        end: e.end,
+                        duration: e.duration,
+                        direction: e.direction,
+                    })
+                    .collect(),
+            };
+            self.out.put(Topic::Events, encode(&ev));
+        }
+        for b in plant.closed_blocks() {
+            let m = b.sums.metrics(
+                plant.cells(),
+                plant.discretisation().dt,
+                plant.params().body.area,
+                plant.block_length(),
+            );
+            let msg = MetricsMsg {
+                v: PROTOCOL_VERSION,
+                step: n,
+                block: b.index,
+                steady: b.steady,
+                start: m.start,
+                end: m.end,
+                values: m.values(),
+            };
+            if msg.values.get(Metric::Velocity).is_some() && msg.values.get(Metric::Power).is_some()
+            {
+                self.out.put(Topic::Metrics, encode(&msg));
+            }
+        }
+    }
+}
+
+impl<O: Outbox> Observer for Publisher<'_, O> {
+    fn stepped(&mut self, s: &Stepped<'_>) {
+        let n = s.step;
+        self.publish_step_outputs(s.plant);
+        self.publish_state(s.plant, s.last_step);
+        if n.is_multiple_of(64) {
+            self.bar.set_position(n + 1);
+        }
+        if self.last_status.elapsed() >= STATUS_EVERY {
+            publish_status(
+                self.out,
+                self.id,
+                (
+                    ProcessState::Running,
+                    &format!("step {} of {}", n + 1, s.last_step),
+                    n + 1,
+                ),
+                rejected(&self.admission.borrow(), self.inbox),
+                None,
+            );
+            self.last_status = Instant::now();
+        }
+        let ended_by_task = s.task.task.end_run && s.last_step == n + 1;
+        if let Some(outcome) = s
+            .task
+            .decided()
+            .filter(|_| ended_by_task && !self.announced)
+        {
+            eprintln!(
+                "crawler-plant: task {} at step {}; the run ends there",
+                outcome.as_str(),
+                n + 1
+            );
+            self.announced = true;
+        }
     }
 }
 

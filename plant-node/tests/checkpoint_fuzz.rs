@@ -6,8 +6,8 @@
 use proptest::prelude::*;
 
 use crawler_plant::plant::Plant;
+use crawler_plant::report::EpisodeLog;
 use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::EpisodeLog;
 use crawler_plant_node::checkpoint::Checkpoint;
 
 /// The framing header: magic (8 bytes), version (4), CRC-32 of the payload (4).

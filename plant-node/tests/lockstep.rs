@@ -216,7 +216,14 @@ fn lockstep_under_the_scenarios_wave_is_bit_identical_to_simulate() {
         .as_ref()
         .expect("the finished status carries the report");
     assert_eq!(report.state_digest, result.0);
-    assert_eq!(report.velocity.to_bits(), result.1);
+    assert_eq!(
+        report
+            .values
+            .get(crawler_facts::Metric::Velocity)
+            .unwrap()
+            .to_bits(),
+        result.1
+    );
     assert_eq!(report.events.count, result.2);
     assert_eq!(report.macro_steps, last_step);
     // only the finished status carries it

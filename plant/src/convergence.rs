@@ -9,8 +9,9 @@
 use serde::Serialize;
 
 use crate::params::MAX_CELLS;
+use crate::report::Report;
 use crate::scenario::Scenario;
-use crate::simulate::{simulate, Report, SimulateError, SimulateOptions};
+use crate::simulate::{simulate, SimulateError, SimulateOptions};
 
 /// One metric at both resolutions.
 #[derive(Debug, Clone, Serialize)]

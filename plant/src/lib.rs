@@ -9,7 +9,9 @@
 //! - [`friction`]: the set-valued friction law and its exact one-step solution.
 //! - [`plant`]: the plant advanced in communication steps, with actuation, metrics and events.
 //! - [`slave`]: the FMI-style lifecycle, value references and state serialization.
-//! - [`scenario`]: TOML scenarios; [`simulate`]: an in-process run under a fixed wave.
+//! - [`execution`]: the one loop that runs a plant (controller before each step, observers after);
+//!   [`report`]: what a run reports, whichever route ran it.
+//! - [`scenario`]: TOML scenarios; [`simulate`]: an in-process run under the scenario's wave.
 //! - [`framing`]: the framed, checksummed binary format of serialised states.
 //! - [`cpu`]: whether this CPU runs the instructions the build targets (an answer, never an exit).
 //!
@@ -23,6 +25,7 @@ pub mod convergence;
 pub mod cpu;
 pub mod error;
 pub mod events;
+pub mod execution;
 pub mod framing;
 pub mod friction;
 pub mod metrics;
@@ -33,6 +36,7 @@ pub mod pair;
 pub mod params;
 pub mod pipe;
 pub mod plant;
+pub mod report;
 pub mod scenario;
 pub mod simd;
 pub mod simulate;

@@ -7,6 +7,7 @@
 //! start at least `numerics.settle` seconds after the last change of actuation form the steady
 //! window; the steady metrics are the sums over that window.
 
+use crawler_facts::{Metric, MetricValues};
 use serde::{Deserialize, Serialize};
 
 use crate::solver::StepSums;
@@ -247,6 +248,26 @@ pub struct Metrics {
 }
 
 impl Metrics {
+    /// The value of `metric` (the plant's computation of each row of the metric table).
+    pub fn value(&self, metric: Metric) -> f64 {
+        match metric {
+            Metric::Velocity => self.velocity,
+            Metric::Power => self.power,
+            Metric::Mileage => self.mileage,
+            Metric::MaxStress => self.max_stress,
+            Metric::MaxStrain => self.max_strain,
+            Metric::StuckFraction => self.stuck_fraction,
+            Metric::MeanFrictionSelection => self.mean_friction_selection,
+            Metric::EpisodesPerNodePerPeriod => self.episodes_per_node_per_period,
+        }
+    }
+
+    /// Every metric of the table (a value that is not finite, such as the mileage of a body that
+    /// takes no power, is `None`).
+    pub fn values(&self) -> MetricValues {
+        MetricValues::from_fn(|m| Some(self.value(m)))
+    }
+
     /// Relative residual of the scheme's exact momentum balance over the window,
     /// `rho dV/T_w + c_v <(v⁺+v⁻)/2> + <eps c_d (s - n_F)> = 0` (elastic and muscle forces cancel
     /// in the sum over the body, periodic or free), scaled by `c_v |<(v⁺+v⁻)/2>|`. Round-off

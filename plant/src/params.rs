@@ -8,7 +8,7 @@ use crate::pipe::Pipe;
 /// Largest number of cells a plant accepts: the one limit shared by the plant, the wire protocol
 /// and every front end, defined once in the wire contract (a co-simulation state of this many
 /// cells is about 26 MB).
-pub use crawler_protocol::MAX_CELLS;
+pub use crawler_facts::MAX_CELLS;
 /// Smallest number of cells a plant accepts.
 pub const MIN_CELLS: usize = 8;
 /// Largest number of internal steps per communication step (guards against absurd `step`).

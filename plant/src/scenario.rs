@@ -572,10 +572,10 @@ impl Scenario {
     }
 }
 
-/// The scenario's name: at most [`crawler_protocol::MAX_SCENARIO_NAME_LEN`] bytes (it travels
+/// The scenario's name: at most [`crawler_facts::MAX_SCENARIO_NAME_LEN`] bytes (it travels
 /// in the plant's final report), no control characters (it is printed).
 fn check_name(name: &str) -> Result<(), ParamError> {
-    let most = crawler_protocol::MAX_SCENARIO_NAME_LEN;
+    let most = crawler_facts::MAX_SCENARIO_NAME_LEN;
     check_text(
         "name",
         name,

@@ -14,28 +14,7 @@ use serde::{Deserialize, Serialize};
 use crate::plant::StepOutputs;
 use crate::scenario::Task;
 
-/// How a task ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Outcome {
-    /// The centre of mass travelled the distance within the energy budget.
-    Reached,
-    /// The actuator spent the budget before the distance was reached.
-    EnergyExhausted,
-    /// The run ended (t_end) with neither.
-    TimeUp,
-}
-
-impl Outcome {
-    /// The outcome in words.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Outcome::Reached => "reached",
-            Outcome::EnergyExhausted => "energy exhausted",
-            Outcome::TimeUp => "time up",
-        }
-    }
-}
+pub use crawler_facts::Outcome;
 
 /// Running totals of a run against its task.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -163,7 +142,7 @@ impl TaskTracker {
     pub fn report(&self) -> TaskReport {
         let t = self.task;
         TaskReport {
-            outcome: self.decided().unwrap_or(Outcome::TimeUp).as_str(),
+            outcome: self.decided().unwrap_or(Outcome::TimeUp),
             distance_target: t.distance,
             distance: self.distance,
             time_to_distance: self.reached_at.map(|r| r - self.start_time),
@@ -183,7 +162,7 @@ impl TaskTracker {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TaskReport {
     /// "reached", "energy exhausted" or "time up".
-    pub outcome: &'static str,
+    pub outcome: Outcome,
     /// The task's distance D, m.
     pub distance_target: f64,
     /// Distance the centre of mass travelled, m.
@@ -266,7 +245,7 @@ mod tests {
         assert!((r.time_to_distance.unwrap() - (3.0 + 0.1 / 0.3)).abs() < 1e-12);
         assert!((r.energy_at_distance.unwrap() - (3.0 + 0.1 / 0.3)).abs() < 1e-12);
         assert_eq!(r.energy_used, 4.0);
-        assert_eq!(r.outcome, "reached");
+        assert_eq!(r.outcome, Outcome::Reached);
     }
 
     #[test]
@@ -299,8 +278,8 @@ mod tests {
         // distance at 0.8 s, budget at 0.5 s
         let out = t.observe(1.0, 1.0, 1.25, &step(40.0, 0.0, 0.0));
         assert_eq!(out, Some(Outcome::EnergyExhausted));
-        assert_eq!(t.report().outcome, "energy exhausted");
+        assert_eq!(t.report().outcome, Outcome::EnergyExhausted);
         let t = TaskTracker::new(TASK, 0.0, 0.0);
-        assert_eq!(t.report().outcome, "time up");
+        assert_eq!(t.report().outcome, Outcome::TimeUp);
     }
 }

@@ -267,7 +267,7 @@ fn a_state_restored_at_every_step_continues_bit_for_bit_in_a_fine_texture() {
         moves += now.iter().zip(&last).filter(|(a, b)| a != b).count();
         last = now;
     }
-    let digest = crawler_plant::simulate::state_digest;
+    let digest = crawler_plant::report::state_digest;
     assert_eq!(digest(straight.plant()), digest(restored.plant()));
     // not vacuous: nodes kept crossing piece edges
     assert!(moves > 1000, "only {moves} changes of a node's friction");

@@ -3,8 +3,8 @@
 mod common;
 
 use common::{paper, rel, run};
+use crawler_plant::report::Report;
 use crawler_plant::scenario::Overrides;
-use crawler_plant::simulate::Report;
 
 fn at(cells: i64, eps: f64, f0: f64, alpha: f64, courant: Option<f64>) -> Report {
     at_with(cells, eps, f0, alpha, courant, None)

@@ -304,7 +304,7 @@ fn boundary_and_pipe_sections_are_read_and_checked() {
 
 #[test]
 fn a_name_longer_than_the_report_carries_is_refused_by_field_and_length() {
-    let most = crawler_protocol::MAX_SCENARIO_NAME_LEN;
+    let most = crawler_facts::MAX_SCENARIO_NAME_LEN;
     let named = |name: &str| PAPER_TOML.replace("name = \"paper\"", &format!("name = \"{name}\""));
     assert_eq!(load(&named(&"x".repeat(most))).unwrap().name.len(), most);
     // a multi-byte name is counted in bytes

@@ -13,7 +13,7 @@ fn long(
     t_end: f64,
     settle: f64,
     filter: f64,
-) -> crawler_plant::simulate::Report {
+) -> crawler_plant::report::Report {
     let mut s = custom(
         eps,
         0.5,

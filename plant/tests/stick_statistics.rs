@@ -25,7 +25,7 @@ fn compare(
     s: &crawler_plant::Scenario,
     tol_stuck: f64,
     tol_v: f64,
-) -> (crawler_plant::simulate::Report, Steady) {
+) -> (crawler_plant::report::Report, Steady) {
     let exact = Problem::of(s).solve();
     let r = run(s);
     let period = TAU / s.wave.omega;

@@ -5,8 +5,8 @@ mod common;
 use std::f64::consts::TAU;
 
 use common::{custom, paper, rel, run, Linear};
+use crawler_plant::report::mean_position;
 use crawler_plant::scenario::Overrides;
-use crawler_plant::simulate::mean_position;
 use crawler_plant::slave::{Slave, StepStatus};
 
 fn task(distance: f64, energy: f64) -> String {
@@ -23,7 +23,7 @@ fn without_dry_friction_the_budget_runs_out_at_the_closed_form_power() {
     let exact = Linear::of(&s);
     let r = run(&s);
     let t = r.task.expect("a task report");
-    assert_eq!(t.outcome, "energy exhausted");
+    assert_eq!(t.outcome.as_str(), "energy exhausted");
     let tau = 2.0 * s.plant.body.density / s.plant.friction.viscous;
     let expected = 40.0 / exact.power + tau;
     let at = t.energy_exhausted_at.unwrap();
@@ -43,7 +43,7 @@ fn reaching_the_distance_ends_the_run_where_the_centre_crosses_it() {
     let s = custom(1.0, 0.2, TAU, 0.5, 1.0, 256, 60.0, &task(0.2, 100.0));
     let r = run(&s);
     let t = r.task.unwrap();
-    assert_eq!(t.outcome, "reached");
+    assert_eq!(t.outcome.as_str(), "reached");
     let reached = t.time_to_distance.unwrap();
     // An independent account: step the same plant and find where the mean displacement crosses.
     let mut slave = Slave::instantiate("task", s.plant.clone()).unwrap();
@@ -101,7 +101,7 @@ fn outside_task_mode_the_run_goes_on_and_still_reports_the_task() {
     let r = run(&s);
     assert!((r.t_end - 10.0).abs() < r.parameters.step);
     let t = r.task.unwrap();
-    assert_eq!(t.outcome, "reached");
+    assert_eq!(t.outcome.as_str(), "reached");
     assert!(t.distance > 0.1);
     assert!(r.window.steady);
 }

@@ -1,8 +1,9 @@
 //! Helpers shared by the plant's integration tests.
 #![allow(dead_code)]
 
+use crawler_plant::report::Report;
 use crawler_plant::scenario::{Overrides, Scenario};
-use crawler_plant::simulate::{simulate, Report, SimulateOptions};
+use crawler_plant::simulate::{simulate, SimulateOptions};
 
 /// The paper scenario with overrides.
 pub fn paper(o: Overrides) -> Scenario {

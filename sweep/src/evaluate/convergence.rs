@@ -5,10 +5,11 @@
 //!
 //! This is the one place that decides how the plant is run at a point.
 
+use crawler_plant::report::Report;
 use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::{simulate, Report, SimulateOptions};
+use crawler_plant::simulate::{simulate, SimulateOptions};
 
-use crate::record::{finite, Metrics, PlantResult, PlantRun};
+use crate::record::{finite, PlantResult, PlantRun};
 
 /// Options of the plant runs of a sweep: no progress bar, episodes counted but not listed.
 pub fn run_options() -> SimulateOptions<'static> {
@@ -21,16 +22,7 @@ pub fn run_options() -> SimulateOptions<'static> {
 /// The metrics and resolution of a plant report.
 pub fn plant_run(r: &Report) -> PlantRun {
     PlantRun {
-        metrics: Metrics {
-            velocity: finite(r.velocity),
-            power: finite(r.power),
-            mileage: finite(r.mileage),
-            max_stress: finite(r.max_stress),
-            max_strain: finite(r.max_strain),
-            stuck_fraction: finite(r.stuck_fraction),
-            mean_friction_selection: finite(r.mean_friction_selection),
-            episodes_per_node_per_period: finite(r.events.per_node_per_period),
-        },
+        metrics: r.values(),
         cells: r.cells as u64,
         dt: r.dt,
         steps: r.steps,
