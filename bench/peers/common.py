@@ -111,11 +111,13 @@ class Metrics:
 
     feed(t, u, v) takes the times (m,) of consecutive samples and the nodes' displacements and
     velocities (m, N) at those times; the samples must be the simulator's own steps (the muscle's
-    work is summed over them). The periodic body's nodes sit at x_i = i dx, the faces at (i + 1/2) dx.
+    work is summed over them, with the force the tool applied during each step: evaluated
+    `force_at` steps after the step's start). The periodic body's nodes sit at x_i = i dx, the faces at (i + 1/2) dx.
     """
 
-    def __init__(self, case, n_nodes, dt):
+    def __init__(self, case, n_nodes, dt, force_at=0.0):
         self.case = case
+        self.force_at = force_at  # when in a step the tool evaluates the muscle force, as a share of dt
         self.n = n_nodes
         self.dx = case.length / n_nodes
         self.x_faces = (np.arange(n_nodes) + 0.5) * self.dx
@@ -163,7 +165,7 @@ class Metrics:
                 start = ts[:-1]
                 sel = (start >= self.t_a - 0.5 * self.dt) & (start < self.t_b - 0.5 * self.dt)
                 if np.any(sel):
-                    ta = active_tension(self.case, self.x_faces, start[sel])
+                    ta = active_tension(self.case, self.x_faces, start[sel] + self.force_at * self.dt)
                     force = ta - np.roll(ta, 1, axis=1)
                     du = (us[1:] - us[:-1])[sel]
                     self.work += float(np.sum(force * du))

@@ -1,7 +1,8 @@
 """The peers' table: the crawler in this project's plant, in MuJoCo and in PyElastica, against the
 exact answers, as resolution and time step are refined; one command, Markdown on stdout.
 
-Usage: .venv/bin/python bench/peers/run.py [--repeats 3] [--bin-dir DIR] [--out FILE] [--json FILE]
+Usage: .venv/bin/python bench/peers/run.py [--repeats 5] [--bin-dir DIR] [--out FILE] [--json FILE]
+                                           [--cache DIR [--peers-only]]
        .venv/bin/python bench/peers/run.py --quick   # smoke run: every tool and case, short (JSON)
 
 The project's binaries are taken from --bin-dir, else $CRAWLER_BIN_DIR, else
@@ -10,11 +11,16 @@ $CARGO_TARGET_DIR/release or target/release (build them with
 improved model's travelling-wave steady state (`crawler-controller predict --model improved
 --march-steps 65536`, docs/physics.md §4) and, for the static hold, zero. Wall times: the plant's
 is the whole `crawler-plant simulate` process (start-up and JSON included); the peers' is their
-stepping loop only (imports, model building, numba's compilation and the metrics excluded), each
-the median of --repeats runs interleaved with the others. See docs/peers.md.
+stepping loop only (imports, model building, numba's compilation and the metrics excluded). The
+last table times each tool's cheapest row that stays within 1 % in V: medians of --repeats runs,
+interleaved with the other tools'; every other row is one run. --cache DIR stores and reuses the peers' tuning and ladder
+runs (keyed by the scripts' text and arguments; the whole run takes about an hour on 2 busy cores,
+most of it PyElastica's finest rows). See docs/peers.md.
 """
 
 import argparse
+import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -123,13 +129,32 @@ def exact(bins, case):
     return json.loads(out)
 
 
-def peer(tool, case_name, cells, args, quick_mode=False):
+CACHE = None  # --cache: a directory of peer results keyed by the scripts' text and the arguments
+
+
+def peer(tool, case_name, cells, args, quick_mode=False, cached=True):
     script = {"mujoco": "mujoco_crawler.py", "pyelastica": "elastica_crawler.py"}[tool]
     cmd = [PY, os.path.join(HERE, script), "--case", case_name, "--cells", str(cells), *args]
     if quick_mode:
         cmd.append("--quick")
+    path = None
+    if CACHE and cached:
+        h = hashlib.sha256()
+        for f in (script, "common.py"):
+            with open(os.path.join(HERE, f), "rb") as src:
+                h.update(src.read())
+        h.update(json.dumps(cmd[1:]).encode())
+        path = os.path.join(CACHE, h.hexdigest() + ".json")
+        if os.path.exists(path):
+            with open(path) as f:
+                return json.load(f)
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    r = json.loads(out.strip().splitlines()[-1])
+    if path:
+        os.makedirs(CACHE, exist_ok=True)
+        with open(path, "w") as f:
+            json.dump(r, f)
+    return r
 
 
 def expand(args, cells, case):
@@ -176,7 +201,8 @@ def quick_run(bins, only):
         if only and name != only:
             continue
         q = quick(case)
-        r, wall = ours(bins, q, 32)
+        # the plant averages whole forcing periods after settle (it refuses a shorter window)
+        r, wall = ours(bins, dataclasses.replace(q, settle=min(q.settle, 0.8 * q.t_end)), 32)
         results[f"ours/{name}"] = {**{k: r.get(k) for k in ("velocity", "power", "max_stress", "stuck_fraction")},
                                    "finite": r["finite"]}
         results[f"exact/{name}"] = exact(bins, case)
@@ -185,20 +211,20 @@ def quick_run(bins, only):
     print(json.dumps(results))
 
 
-def ladder(bins, max_cells):
+def ladder(bins, max_cells, peers_only=False):
     """Every refinement row: (tool, setting, case, cells, runner); a runner returns (result, wall)."""
     rows = []
     for name, case in CASES.items():
         static = name == "static"
-        for cells in ([32, 128, 512] if static else OURS_CELLS):
+        for cells in [] if peers_only else ([32, 128, 512] if static else OURS_CELLS):
             rows.append(("ours", "crawler-plant defaults (Courant 1, filter 0.1)", name, cells,
                          lambda case=case, cells=cells: ours(bins, case, cells)))
         for tool, configs in (("mujoco", ((MUJOCO_TUNED, 512), (MUJOCO_TUNED_DT, 256))),
                               ("pyelastica", ((ELASTICA_TUNED, 512), (ELASTICA_TUNED_DT, 256)))):
             for (label, args), top in configs[:1] if static else configs:
                 for cells in ([32, 128] if static else [c for c in PEER_CELLS if c <= min(top, max_cells)]):
-                    def run(tool=tool, name=name, cells=cells, args=args, case=case):
-                        r = peer(tool, name, cells, expand(args, cells, case))
+                    def run(tool=tool, name=name, cells=cells, args=args, case=case, cached=True):
+                        r = peer(tool, name, cells, expand(args, cells, case), cached=cached)
                         return r, r["wall_time"]
                     rows.append((tool, label, name, cells, run))
     return rows
@@ -214,7 +240,23 @@ def main():
     ap.add_argument("--max-cells", type=int, default=512, help="finest resolution of the peers' ladders")
     ap.add_argument("--quick", action="store_true", help="smoke run of every tool and case (JSON on stdout)")
     ap.add_argument("--case", choices=sorted(CASES), help="with --quick: this case only")
+    ap.add_argument("--cache", help="reuse the peers' ladder and tuning results stored in this directory "
+                                    "(keyed by the scripts' text and arguments; the timed runs are always fresh)")
+    ap.add_argument("--peers-only", action="store_true", help="with --cache: only fill the cache with the peers' runs")
     a = ap.parse_args()
+    global CACHE
+    CACHE = a.cache
+    if a.peers_only:
+        if not a.cache:
+            sys.exit("--peers-only needs --cache DIR")
+        for name in ("static", "stickslip"):
+            for tool, table in (("mujoco", MUJOCO_TUNING), ("pyelastica", ELASTICA_TUNING)):
+                for label, args in table:
+                    peer(tool, name, TUNE_CELLS, expand(args, TUNE_CELLS, CASES[name]))
+        for tool, label, name, cells, runner in ladder(None, a.max_cells, peers_only=True):
+            r, wall = runner()
+            log(f"{tool} | {label} | {name} | {cells}: V = {r.get('velocity')} ({wall:.3f} s)")
+        return
     bins = bin_dir(a.bin_dir)
     for b in ("crawler-plant", "crawler-controller"):
         if not os.access(os.path.join(bins, b), os.X_OK):
@@ -250,22 +292,28 @@ def main():
         walls.append(wall)
         log(f"{tool} | {label} | {name} | {cells}: V = {r.get('velocity')} ({wall:.3f} s)")
 
-    # 3. each tool's cheapest row within 1 % in V (else its closest), timed --repeats times, interleaved
+    # 3. each tool's cheapest row from which on its setting stays within 1 % in V at every finer
+    #    resolution of the ladder (a coarse row that is within 1 % by luck does not count), else its
+    #    closest row; timed --repeats times, interleaved
     picks = {}
     for name in ("paper", "stickslip"):
         for tool in ("ours", "mujoco", "pyelastica"):
-            cand = [i for i, row in enumerate(rows) if row[0] == tool and row[2] == name
-                    and results[i].get("finite", True)]
-            errs = {i: rel(results[i]["velocity"], exacts[name]["velocity"]) for i in cand}
-            within = [i for i in cand if abs(errs[i]) <= 0.01]
-            if within:
-                picks[(name, tool)] = (min(within, key=lambda i: walls[i]), True)
+            cand = [i for i, row in enumerate(rows) if row[0] == tool and row[2] == name]
+            err = {i: (abs(rel(results[i]["velocity"], exacts[name]["velocity"]))
+                       if results[i].get("finite", True) else math.inf) for i in cand}
+            settled = []
+            for i in cand:
+                finer = [j for j in cand if rows[j][1] == rows[i][1] and rows[j][3] >= rows[i][3]]
+                if all(err[j] <= 0.01 for j in finer):
+                    settled.append(i)
+            if settled:
+                picks[(name, tool)] = (min(settled, key=lambda i: walls[i]), True)
             elif cand:
-                picks[(name, tool)] = (min(cand, key=lambda i: abs(errs[i])), False)
+                picks[(name, tool)] = (min(cand, key=lambda i: err[i]), False)
     timed = {key: [] for key in picks}
     for rep in range(a.repeats):
         for key, (i, _) in picks.items():
-            _, wall = rows[i][4]()
+            _, wall = rows[i][4](cached=False) if rows[i][0] != "ours" else rows[i][4]()
             timed[key].append(wall)
             log(f"[{rep + 1}/{a.repeats}] {key}: {wall:.3f} s")
 
@@ -290,9 +338,12 @@ def log(msg):
 
 def render(a, mach, started, exacts, tuning, rows, results, walls, picks, timed):
     ex = exacts
-    out = [f"Command: `.venv/bin/python bench/peers/run.py --repeats {a.repeats}`; machine: {mach}; "
+    cmd = " ".join([".venv/bin/python bench/peers/run.py", *sys.argv[1:]])
+    out = [f"Command: `{cmd}`; machine: {mach}; "
            f"date: {started.strftime('%Y-%m-%d %H:%M UTC')}. Every row's wall time is one run; the last table's "
-           f"are medians of {a.repeats} interleaved runs.", "",
+           f"are medians of {a.repeats} interleaved runs."
+           + (" The peers' tuning and ladder rows (their wall times too) were read from --cache, stored by earlier "
+              "runs of the same scripts; the last table's runs are fresh." if a.cache else ""), "",
            f"Exact answers (improved model, 65536 march steps per period): paper's point V = "
            f"{ex['paper']['velocity']:.6e} m/s, P = {ex['paper']['power']:.6e} W, sigma = "
            f"{ex['paper']['max_stress']:.6e} Pa; stick-slip V = {ex['stickslip']['velocity']:.6e} m/s, P = "
@@ -344,7 +395,8 @@ def render(a, mach, started, exacts, tuning, rows, results, walls, picks, timed)
             dts = f"{dt:.2e}" if dt else "n/a"
             out.append(f"| {tool} | {label} | {cells} | {dts} | " + " | ".join(cols) + f" | {walls[i]:.3f} |")
 
-    out += ["", f"### Time to 1 % in V (each tool's cheapest row within 1 %; medians of {a.repeats} interleaved runs)",
+    out += ["", f"### Time to 1 % in V (each tool's cheapest row that stays within 1 % at every finer resolution "
+            f"of its setting; medians of {a.repeats} interleaved runs)",
             "", "| case | tool | setting | cells | V error | wall time (s) | ratio to ours |",
             "| --- | --- | --- | ---: | ---: | ---: | ---: |"]
     for name in ("paper", "stickslip"):
