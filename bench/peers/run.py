@@ -14,7 +14,7 @@ is the whole `crawler-plant simulate` process (start-up and JSON included); the 
 stepping loop only (imports, model building, numba's compilation and the metrics excluded). The
 last table times each tool's cheapest row that stays within 1 % in V: medians of --repeats runs,
 interleaved with the other tools'; every other row is one run. --cache DIR stores and reuses the peers' tuning and ladder
-runs (keyed by the scripts' text and arguments; the whole run takes about an hour on 2 busy cores,
+runs (keyed by the scripts' text and arguments; the whole run takes about half an hour on 2 busy cores,
 most of it PyElastica's finest rows). See docs/peers.md.
 """
 
