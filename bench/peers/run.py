@@ -7,7 +7,7 @@ Usage: .venv/bin/python bench/peers/run.py [--repeats 5] [--bin-dir DIR] [--out 
 
 The project's binaries are taken from --bin-dir, else $CRAWLER_BIN_DIR, else
 $CARGO_TARGET_DIR/release or target/release (build them with
-`cargo build --release -p crawler-plant-node -p crawler-controller`). The exact answers are the
+`cargo build --release -p crawler-plant -p crawler-controller`). The exact answers are the
 improved model's travelling-wave steady state (`crawler-controller predict --model improved
 --march-steps 65536`, docs/physics.md §4) and, for the static hold, zero. Wall times: the plant's
 is the whole `crawler-plant simulate` process (start-up and JSON included); the peers' is their
@@ -260,7 +260,7 @@ def main():
     bins = bin_dir(a.bin_dir)
     for b in ("crawler-plant", "crawler-controller"):
         if not os.access(os.path.join(bins, b), os.X_OK):
-            sys.exit(f"{os.path.join(bins, b)} not found: build with `cargo build --release -p crawler-plant-node "
+            sys.exit(f"{os.path.join(bins, b)} not found: build with `cargo build --release -p crawler-plant "
                      f"-p crawler-controller`, or pass --bin-dir / set CRAWLER_BIN_DIR")
     if a.repeats < 1:
         sys.exit(f"--repeats {a.repeats}: at least 1")

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crawler_plant::scenario::{Overrides, Scenario, ScenarioError};
+use crawler_physics::scenario::{Overrides, Scenario, ScenarioError};
 
 /// Scenario file and the common overrides.
 #[derive(Args, Debug, Clone, Default)]
@@ -187,7 +187,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("crawler-cli-test-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("bad.toml");
-        let text = crawler_plant::scenario::PAPER_TOML.replace("eps = 0.1", "eps = -0.5");
+        let text = crawler_physics::scenario::PAPER_TOML.replace("eps = 0.1", "eps = -0.5");
         std::fs::write(&path, text).unwrap();
         // --f0 is given but valid: the error is about the file's eps, named by its key only
         let e = error(ScenarioArgs {

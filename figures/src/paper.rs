@@ -20,8 +20,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crawler_plant::scenario::Scenario;
-use crawler_plant::wave::Wave;
+use crawler_physics::scenario::Scenario;
+use crawler_physics::wave::Wave;
 
 use crawler_models::operating_point::OperatingPoint;
 use crawler_models::optimizer::{

@@ -12,7 +12,7 @@ use std::sync::OnceLock;
 
 use serde_json::Value;
 
-/// Directory holding `crawler_plant.fmu` and `crawler_plant_fmi3.fmu`.
+/// Directory holding `crawler_physics.fmu` and `crawler_plant_fmi3.fmu`.
 fn fmus() -> &'static Path {
     static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
     &DIR.get_or_init(|| {
@@ -43,7 +43,7 @@ fn fmus() -> &'static Path {
 
 fn fmu(version: u8) -> PathBuf {
     fmus().join(if version == 2 {
-        "crawler_plant.fmu"
+        "crawler_physics.fmu"
     } else {
         "crawler_plant_fmi3.fmu"
     })
@@ -231,15 +231,15 @@ fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
     for n in 0..steps {
         assert_eq!(
             slave.do_step(n as f64 * h, h),
-            crawler_plant::slave::StepStatus::Ok
+            crawler_physics::slave::StepStatus::Ok
         );
     }
     assert_eq!(
         r["digest"].as_str().unwrap(),
-        crawler_plant::report::state_digest(slave.plant()),
+        crawler_physics::report::state_digest(slave.plant()),
         "ecos's run differs from the in-process slave"
     );
-    let mean = slave.float64_scalar(crawler_plant::model_description::vr::MEAN_DISPLACEMENT);
+    let mean = slave.float64_scalar(crawler_physics::model_description::vr::MEAN_DISPLACEMENT);
     assert_eq!(
         bits(&r["outputs"]["mean_displacement"]),
         mean.unwrap().to_bits()
@@ -257,7 +257,7 @@ fn the_readme_fmpy_example_runs_as_shown() {
     let code = &readme[start + "```python\n".len()..];
     let code = &code[..code.find("```").unwrap()];
     assert!(code.lines().count() <= 12, "the example stays short");
-    let code = code.replace("target/fmu/crawler_plant.fmu", path_str(&fmu(2)));
+    let code = code.replace("target/fmu/crawler_physics.fmu", path_str(&fmu(2)));
     let out = Command::new(crawler_e2e::python())
         .args(["-c", &code])
         .output()

@@ -4,8 +4,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crawler_plant::scenario::{Overrides, Scenario};
-use crawler_plant::simulate::{simulate, SimulateOptions};
+use crawler_physics::scenario::{Overrides, Scenario};
+use crawler_physics::simulate::{simulate, SimulateOptions};
 
 use crate::operating_point::OperatingPoint;
 use crate::optimizer::{

@@ -2,9 +2,9 @@
 
 use serde::Serialize;
 
-use crawler_plant::params::{Body, Friction};
-use crawler_plant::scenario::Scenario;
-use crawler_plant::wave::Wave;
+use crawler_physics::params::{Body, Friction};
+use crawler_physics::scenario::Scenario;
+use crawler_physics::wave::Wave;
 
 /// What a model needs to predict the steady state.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

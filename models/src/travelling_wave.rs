@@ -14,14 +14,14 @@
 //! `w_p` the exact periodic response to the cosine, and `z` integrated exactly between steps for
 //! constant `s` (`z -> z*(s)` at rate `c_v / |kappa|`), marching in the direction in which the
 //! homogeneous part decays. The set-valued `s` is resolved at the end of each step by the same
-//! closed form as the plant ([`crawler_plant::friction::select`]), so stick phases (`w = 0`) are
+//! closed form as the plant ([`crawler_physics::friction::select`]), so stick phases (`w = 0`) are
 //! exact; a sign change of `w` inside a step is located by interpolation and the rest of the step
 //! continues from `w = 0`, so the one-period map of `z` is continuous (a contraction). Its fixed
 //! point, the periodic solution, is found by bracketed regula falsi.
 
 use std::f64::consts::TAU;
 
-use crawler_plant::friction::{select, select_with_inverse};
+use crawler_physics::friction::{select, select_with_inverse};
 
 use crate::operating_point::OperatingPoint;
 use crate::prediction::{Model, Prediction, Validity};

@@ -2,10 +2,10 @@
 
 use serde::Serialize;
 
-use crawler_plant::report::Report;
-use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::{simulate, SimulateOptions};
-use crawler_plant::wave::Wave;
+use crawler_physics::report::Report;
+use crawler_physics::scenario::Scenario;
+use crawler_physics::simulate::{simulate, SimulateOptions};
+use crawler_physics::wave::Wave;
 
 use crate::optimizer::{BodyLength, Margins, Optimum, Problem};
 
@@ -73,7 +73,7 @@ pub fn plant_scenario(
     base: &Scenario,
     problem: &Problem,
     wave: Wave,
-) -> Result<Scenario, crawler_plant::ParamError> {
+) -> Result<Scenario, crawler_physics::ParamError> {
     match problem.body_length {
         BodyLength::OneWavelength => base.with_wave(wave, Some(wave.wavelength())),
         BodyLength::Fixed(l) => base.with_wave(wave, Some(l)),

@@ -2,8 +2,8 @@
 
 use crawler_models::travelling_wave::TravellingWaveModel;
 use crawler_models::{Model, OperatingPoint};
-use crawler_plant::scenario::{Overrides, Scenario};
-use crawler_plant::simulate::{simulate, SimulateOptions};
+use crawler_physics::scenario::{Overrides, Scenario};
+use crawler_physics::simulate::{simulate, SimulateOptions};
 
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()

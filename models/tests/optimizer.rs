@@ -12,7 +12,7 @@ use crawler_models::optimizer::{
 use crawler_models::paper_model::PaperModel;
 use crawler_models::verify;
 use crawler_models::Model;
-use crawler_plant::scenario::Scenario;
+use crawler_physics::scenario::Scenario;
 
 fn problem(body_length: BodyLength) -> Problem {
     let s = Scenario::paper();

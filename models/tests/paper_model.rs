@@ -8,7 +8,7 @@ use crawler_models::paper_model::{
     first_order_harmonic, square_wave_coefficients, PaperModel, PaperTerms,
 };
 use crawler_models::{Model, OperatingPoint, Validity};
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
 
 fn op(o: Overrides) -> OperatingPoint {
     OperatingPoint::of(&Scenario::load(None, &o).unwrap())
@@ -177,7 +177,7 @@ fn reconstructed_displacement_overlays_the_plant_at_small_eps() {
         },
     )
     .unwrap();
-    let mut plant = crawler_plant::Plant::new(s.plant.clone(), 0.0).unwrap();
+    let mut plant = crawler_physics::Plant::new(s.plant.clone(), 0.0).unwrap();
     plant.set_wave(s.wave).unwrap();
     while plant.time() < s.t_end - 1e-9 {
         plant.advance().unwrap();

@@ -12,7 +12,7 @@
 
 use std::time::Instant;
 
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
 use crawler_policies::{in_process, Actuation, Context, Insight, Observation, Params, Policy};
 
 /// A policy with a stopwatch around `act`.

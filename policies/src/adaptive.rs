@@ -27,9 +27,9 @@ use std::time::Instant;
 
 use crossbeam_channel::{bounded, Receiver, Sender};
 
-use crawler_plant::params::{Body, Boundary, Friction};
-use crawler_plant::scenario::{Limits, Task};
-use crawler_plant::wave::Wave;
+use crawler_physics::params::{Body, Boundary, Friction};
+use crawler_physics::scenario::{Limits, Task};
+use crawler_physics::wave::Wave;
 
 use crate::estimator::{Estimate, EstimatorOptions, FrictionEstimator, Sample};
 use crate::params::{Key, Params};
@@ -38,7 +38,7 @@ use crawler_models::operating_point::OperatingPoint;
 use crawler_models::optimizer::{BodyLength, GridSpec, ModelChoice, Problem};
 use crawler_models::prediction::{Model, Prediction};
 use crawler_models::travelling_wave::TravellingWaveModel;
-use crawler_plant::execution::{Actuation, Observation};
+use crawler_physics::execution::{Actuation, Observation};
 
 /// The parameters of the adaptive policy (`--param KEY=VALUE`).
 pub const KEYS: [Key; 15] = [

@@ -34,7 +34,7 @@
 //! `eps c_d (1 + n_F)` does not act on the motion at all and stays at its prior too, with a
 //! large uncertainty on eps and n_F: they are then not identifiable, and the estimate says so.
 
-use crawler_plant::params::{Body, Boundary, Friction};
+use crawler_physics::params::{Body, Boundary, Friction};
 
 /// Settings of the estimator.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,11 +6,11 @@
 
 use std::convert::Infallible;
 
-use crawler_plant::execution::{
+use crawler_physics::execution::{
     Actuation, Controller, Execution, ExecutionError, Observation, Observer, Start,
 };
-use crawler_plant::report::Report;
-use crawler_plant::scenario::Scenario;
+use crawler_physics::report::Report;
+use crawler_physics::scenario::Scenario;
 
 use crate::params::Params;
 use crate::policy::{Context, Insight, Policy};
@@ -25,7 +25,7 @@ pub struct InProcessRun {
     /// What the policy reported along the way, with the step it was reported at.
     pub insights: Vec<(u64, Insight)>,
     /// The last travelling wave the policy commanded, if any.
-    pub last_wave: Option<crawler_plant::wave::Wave>,
+    pub last_wave: Option<crawler_physics::wave::Wave>,
 }
 
 /// A policy as the execution's controller: asked once per step, its insights kept.
@@ -34,7 +34,7 @@ pub struct Acting<'a> {
     /// What the policy reported, with the step.
     pub insights: Vec<(u64, Insight)>,
     /// The last wave it commanded.
-    pub last_wave: Option<crawler_plant::wave::Wave>,
+    pub last_wave: Option<crawler_physics::wave::Wave>,
 }
 
 impl<'a> Acting<'a> {

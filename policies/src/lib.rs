@@ -26,7 +26,8 @@ mod registry;
 pub mod sweep;
 pub mod wave;
 
-pub use crawler_plant::execution::{Actuation, Observation};
+pub use crawler_physics::execution::{Actuation, Observation};
+pub use crawler_physics::wave::Wave;
 pub use params::Params;
 pub use policy::{Context, Insight, Policy};
 pub use registry::{build, check, lookup, Entry, Factory, REGISTRY};

@@ -1,6 +1,6 @@
 //! `optimal`: the constrained optimal open-loop wave for this plant's body.
 
-use crawler_plant::wave::Wave;
+use crawler_physics::wave::Wave;
 
 use crate::params::{Key, Params};
 use crate::policy::{Context, Policy};
@@ -8,7 +8,7 @@ use crawler_models::optimizer::{
     BodyLength, GridSpec, ModelChoice, OptimizeReport, Problem, DEFAULT_TIE_TOLERANCE,
 };
 use crawler_models::travelling_wave::TravellingWaveModel;
-use crawler_plant::execution::{Actuation, Observation};
+use crawler_physics::execution::{Actuation, Observation};
 
 /// The wave that maximises the predicted speed under the scenario's task and limits, with `k`
 /// restricted to the wave numbers that fit the plant's body.

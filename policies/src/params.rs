@@ -216,8 +216,12 @@ impl Reader<'_> {
         Ok(Some(xs))
     }
 
-    /// Refuses any setting the policy did not read, naming the keys it takes.
+    /// Refuses any setting the policy did not read, naming the keys it takes (a setting of a
+    /// listed key counts as read).
     pub fn finish(self) -> anyhow::Result<()> {
+        for k in self.keys {
+            self.raw(k.name);
+        }
         let used = self.used.borrow();
         if let Some((k, _)) = self
             .params

@@ -6,10 +6,10 @@
 //! --policy NAME`, a sweep plan's `[evaluate] policy`, Python.
 
 use crawler_models::prediction::Prediction;
-use crawler_plant::execution::{Actuation, Briefing, Observation};
-use crawler_plant::params::{Body, Boundary, Friction};
-use crawler_plant::scenario::Scenario;
-use crawler_plant::wave::Wave;
+use crawler_physics::execution::{Actuation, Briefing, Observation};
+use crawler_physics::params::{Body, Boundary, Friction};
+use crawler_physics::scenario::Scenario;
+use crawler_physics::wave::Wave;
 
 /// What a policy knows when it is built: the plant as the controller is told it
 /// ([`Briefing`]) over the controller's own scenario (task, limits, default wave).
@@ -49,7 +49,7 @@ impl Context {
 
     /// The context of a controller of a run of `scenario` from t = 0 (in process: the same as a
     /// co-simulated controller with the same scenario file is told).
-    pub fn of(scenario: &Scenario) -> Result<Self, crawler_plant::ParamError> {
+    pub fn of(scenario: &Scenario) -> Result<Self, crawler_physics::ParamError> {
         Ok(Self::new(&Briefing::of(scenario)?, scenario))
     }
 

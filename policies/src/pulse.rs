@@ -1,9 +1,6 @@
 //! `pulse`: the scenario's wave, switched on and off every second (an intermittent gait).
 
-use crate::params::Params;
-use crate::policy::{Context, Policy};
-use crawler_plant::execution::{Actuation, Observation};
-use crawler_plant::wave::Wave;
+use crate::{Actuation, Context, Observation, Params, Policy, Wave};
 
 /// The wave during even seconds, no muscle force during odd ones.
 pub struct Pulse {

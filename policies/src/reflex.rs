@@ -35,11 +35,11 @@
 
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-use crawler_plant::params::Boundary;
+use crawler_physics::params::Boundary;
 
 use crate::params::{Key, Params};
 use crate::policy::{Context, Policy};
-use crawler_plant::execution::{Actuation, Observation};
+use crawler_physics::execution::{Actuation, Observation};
 
 /// The parameters of the reflex policy (`--param KEY=VALUE`).
 pub const KEYS: [Key; 13] = [
@@ -300,7 +300,7 @@ impl Reflex {
         };
         let c = ctx.body.wave_speed();
         let omega0 = o.alpha * k * c;
-        let wave = crawler_plant::wave::Wave {
+        let wave = crawler_physics::wave::Wave {
             f0: o.f0,
             k,
             omega: omega0,

@@ -17,8 +17,9 @@ pub struct Entry {
     pub keys: &'static [Key],
     /// Its factory.
     pub build: Factory,
-    /// Checks its parameters without building it (building may run the plant).
-    pub check: fn(&Params) -> anyhow::Result<()>,
+    /// Checks its parameters without building it (building may run the plant); `None`: only
+    /// that every key given is one of `keys`.
+    pub check: Option<fn(&Params) -> anyhow::Result<()>>,
 }
 
 /// Every policy. Add a line here to register a new one.
@@ -28,49 +29,49 @@ pub const REGISTRY: &[Entry] = &[
         help: "the constrained optimal open-loop wave (max V s.t. mileage, stress, strain, f0)",
         keys: &crate::optimal::KEYS,
         build: crate::optimal::build,
-        check: |p| crate::optimal::OptimalOptions::from_params(p).map(|_| ()),
+        check: Some(|p| crate::optimal::OptimalOptions::from_params(p).map(|_| ())),
     },
     Entry {
         name: "wave",
         help: "the scenario's travelling wave (f0, k, omega or alpha from the scenario flags)",
         keys: &[],
         build: crate::wave::build,
-        check: |p| p.reader("wave", &[]).finish(),
+        check: None,
     },
     Entry {
         name: "resonance",
         help: "the scenario's wave at omega = omega_n for its k",
         keys: &[],
         build: crate::wave::build_resonance,
-        check: |p| p.reader("resonance", &[]).finish(),
+        check: None,
     },
     Entry {
         name: "sweep",
         help: "a schedule of waves: the scenario's wave at each alpha in turn, dwell seconds each",
         keys: &crate::sweep::KEYS,
         build: crate::sweep::build,
-        check: crate::sweep::check,
+        check: Some(crate::sweep::check),
     },
     Entry {
         name: "adaptive",
         help: "the optimum re-solved in flight with the friction estimated from the plant's state",
         keys: &crate::adaptive::KEYS,
         build: crate::adaptive::build,
-        check: |p| crate::adaptive::AdaptiveOptions::from_params(p).map(|_| ()),
+        check: Some(|p| crate::adaptive::AdaptiveOptions::from_params(p).map(|_| ())),
     },
     Entry {
         name: "reflex",
         help: "distributed: coupled phase oscillators per segment with local stick, energy and stress reflexes",
         keys: &crate::reflex::KEYS,
         build: crate::reflex::build,
-        check: |p| crate::reflex::ReflexOptions::from_params(p).map(|_| ()),
+        check: Some(|p| crate::reflex::ReflexOptions::from_params(p).map(|_| ())),
     },
     Entry {
         name: "pulse",
         help: "the scenario's wave, on and off every second",
         keys: &[],
         build: crate::pulse::build,
-        check: |p| p.reader("pulse", &[]).finish(),
+        check: None,
     },
 ];
 
@@ -90,7 +91,11 @@ pub fn lookup(name: &str) -> anyhow::Result<&'static Entry> {
 
 /// Checks the parameters of the policy registered as `name` without building it.
 pub fn check(name: &str, params: &Params) -> anyhow::Result<()> {
-    (lookup(name)?.check)(params)
+    let entry = lookup(name)?;
+    match entry.check {
+        Some(check) => check(params),
+        None => params.reader(entry.name, entry.keys).finish(),
+    }
 }
 
 /// The policy registered as `name`, built for `ctx` with `params` (every parameter read and

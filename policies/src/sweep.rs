@@ -1,10 +1,10 @@
 //! `sweep`: a schedule of travelling waves, each held for a dwell time.
 
-use crawler_plant::wave::Wave;
+use crawler_physics::wave::Wave;
 
 use crate::params::{Key, Params};
 use crate::policy::{Context, Policy};
-use crawler_plant::execution::{Actuation, Observation};
+use crawler_physics::execution::{Actuation, Observation};
 
 /// Visits `alphas` in turn, `dwell` seconds each, then holds the last. The phase is carried over
 /// at each switch so the muscle force does not jump.

@@ -2,11 +2,11 @@
 //! (the same at the undamped natural frequency of the wave's mode). `optimal` applies its
 //! optimum the same way (`super::optimal`).
 
-use crawler_plant::wave::Wave;
+use crawler_physics::wave::Wave;
 
 use crate::params::Params;
 use crate::policy::{Context, Policy};
-use crawler_plant::execution::{Actuation, Observation};
+use crawler_physics::execution::{Actuation, Observation};
 
 /// Always the same travelling wave.
 #[derive(Debug, Clone)]

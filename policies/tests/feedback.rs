@@ -2,7 +2,7 @@
 //! the reflex policy is distributed (a segment's force depends on its own and its neighbours'
 //! sensing only) and deterministic.
 
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
 use crawler_policies::adaptive::{Adaptive, AdaptiveOptions};
 use crawler_policies::in_process;
 use crawler_policies::reflex::{Reflex, ReflexOptions};

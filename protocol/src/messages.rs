@@ -715,7 +715,7 @@ pub struct ReportWindow {
 /// The plant's final report of a finished run, in its `finished` [`Status`]: the metrics of its
 /// window (steady, or run averages: see `window`), the stick-slip statistics, the grid and the
 /// clock, the state digest and the task's result. SI units. The plant library's report converts
-/// into it in one place (`crawler_plant::simulate`).
+/// into it in one place (`crawler_physics::simulate`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FinalReport {
     /// Scenario name (at most [`MAX_SCENARIO_NAME_LEN`] bytes).

@@ -212,10 +212,10 @@ pub struct Plan {
 }
 
 /// A plan or scenario file's text, read to at most
-/// [`MAX_SCENARIO_BYTES`](crawler_plant::scenario::MAX_SCENARIO_BYTES) (a device or a file of
+/// [`MAX_SCENARIO_BYTES`](crawler_physics::scenario::MAX_SCENARIO_BYTES) (a device or a file of
 /// unbounded length is refused, not read to the end).
 fn read_text(path: &Path) -> std::io::Result<String> {
-    crawler_plant::framing::read_text_at_most(path, crawler_plant::scenario::MAX_SCENARIO_BYTES)
+    crawler_physics::framing::read_text_at_most(path, crawler_physics::scenario::MAX_SCENARIO_BYTES)
 }
 
 impl Plan {
@@ -270,7 +270,7 @@ impl Plan {
                 (text, path.display().to_string())
             }
             None => (
-                crawler_plant::scenario::PAPER_TOML.to_string(),
+                crawler_physics::scenario::PAPER_TOML.to_string(),
                 "<embedded paper.toml>".to_string(),
             ),
         };

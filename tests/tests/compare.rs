@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use crawler_e2e::{bin, repo_root, Proc, Run};
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
 use crawler_policies::{in_process, Params};
 
 #[test]

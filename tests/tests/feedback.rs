@@ -5,7 +5,7 @@ use std::f64::consts::TAU;
 use std::time::Duration;
 
 use crawler_e2e::{json, Run};
-use crawler_plant::scenario::Scenario;
+use crawler_physics::scenario::Scenario;
 use crawler_policies::in_process;
 use crawler_policies::{Actuation, Observation, Policy};
 

@@ -7,7 +7,7 @@
 use std::time::Duration;
 
 use crawler_e2e::{json, Run};
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
 use crawler_policies::Params;
 use crawler_sweep::plan::PolicySpec;
 

@@ -58,7 +58,7 @@ struct FiguresArgs {
     #[command(flatten)]
     scenario: ScenarioArgs,
     /// Output directory.
-    #[arg(long, default_value = "figures")]
+    #[arg(long, default_value = "out/figures")]
     out: std::path::PathBuf,
     /// Points per axis of the omega-k planes with the improved model.
     #[arg(long, default_value_t = 36)]
@@ -117,7 +117,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Bench => {
-            let r = crawler_models::bench::run(&crawler_plant::scenario::Scenario::paper())?;
+            let r = crawler_models::bench::run(&crawler_physics::scenario::Scenario::paper())?;
             out!("{}", serde_json::to_string(&r)?);
             Ok(())
         }

@@ -119,7 +119,7 @@ pub fn optimize(a: OptimizeArgs) -> anyhow::Result<()> {
 
 /// The problem of the scenario with the flags' overrides; a bad value from a flag is named by
 /// the flag and the key it sets.
-fn problem(a: &OptimizeArgs, scenario: &crawler_plant::Scenario) -> anyhow::Result<Problem> {
+fn problem(a: &OptimizeArgs, scenario: &crawler_physics::Scenario) -> anyhow::Result<Problem> {
     let mut task = scenario.task;
     let mut limits = scenario.limits;
     if let Some(x) = a.distance {

@@ -2,7 +2,7 @@
 //! when the wave changes or a feedback policy has something to say, a `Prediction` for the
 //! recorder (published after the actuation, so that the plant never waits for it).
 
-use crawler_plant::wave::Wave;
+use crawler_physics::wave::Wave;
 use crawler_protocol::{
     Actuation as ActuationMsg, FinalReport, ModelPrediction, Prediction as PredictionMsg, State,
     WaveMsg, PROTOCOL_VERSION,
@@ -10,7 +10,7 @@ use crawler_protocol::{
 
 use super::predictions::{insight_prediction, predictions};
 use super::summary::FinalSummary;
-use crawler_plant::execution::{Actuation, Observation};
+use crawler_physics::execution::{Actuation, Observation};
 use crawler_policies::{Context, Policy};
 
 /// A policy at work in a run, with what it last applied.

@@ -19,7 +19,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 use crawler_cli::Exit;
-use crawler_plant::scenario::Scenario;
+use crawler_physics::scenario::Scenario;
 use crawler_protocol::{
     decode, encode, ModelInfo, ProcessState, Rejections, Role, RunKeys, RunLimits, State, Status,
     PROTOCOL_VERSION,

@@ -2,9 +2,9 @@
 //! for the recorder about the wave it applies: the models' predictions ([`predictions`]) and a
 //! feedback policy's own report ([`insight_prediction`]).
 
-use crawler_plant::params::{Body, Boundary, Friction};
-use crawler_plant::scenario::Scenario;
-use crawler_plant::wave::Wave;
+use crawler_physics::params::{Body, Boundary, Friction};
+use crawler_physics::scenario::Scenario;
+use crawler_physics::wave::Wave;
 use crawler_protocol::{ModelInfo, ModelPrediction, Series};
 
 use crawler_facts::MetricValues;
@@ -12,7 +12,7 @@ use crawler_models::operating_point::OperatingPoint;
 use crawler_models::paper_model::{first_order_harmonic, PaperModel, PaperTerms};
 use crawler_models::prediction::{Model, Prediction, Validity};
 use crawler_models::travelling_wave::TravellingWaveModel;
-use crawler_plant::execution::Briefing;
+use crawler_physics::execution::Briefing;
 use crawler_policies::{Context, Insight};
 
 /// What the plant's `model` reply tells a controller, as the plant library's [`Briefing`] (the

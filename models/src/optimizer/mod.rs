@@ -32,9 +32,9 @@ use outcome::infeasibility_summary;
 use serde::Serialize;
 use std::f64::consts::TAU;
 
-use crawler_plant::params::{Body, Friction};
-use crawler_plant::scenario::{Limits, Task};
-use crawler_plant::wave::Wave;
+use crawler_physics::params::{Body, Friction};
+use crawler_physics::scenario::{Limits, Task};
+use crawler_physics::wave::Wave;
 
 use crate::operating_point::OperatingPoint;
 use crate::paper_model::PaperModel;
@@ -168,13 +168,13 @@ fn better(a: (f64, f64), b: (f64, f64), top: f64, tol: f64) -> bool {
 
 impl Problem {
     /// Validates bounds, budgets and parameters.
-    pub fn validate(&self) -> Result<(), crawler_plant::ParamError> {
+    pub fn validate(&self) -> Result<(), crawler_physics::ParamError> {
         self.body.validate()?;
         self.friction.validate()?;
         self.task.validate()?;
         self.limits.validate()?;
         if let BodyLength::Fixed(l) = self.body_length {
-            crawler_plant::error::positive("body.length", l)?;
+            crawler_physics::error::positive("body.length", l)?;
         }
         Ok(())
     }
@@ -203,7 +203,7 @@ impl Problem {
     }
 
     /// The k values searched: a uniform grid, or every `2 pi m / L` in bounds for a fixed body.
-    pub fn k_values(&self, points: usize) -> Result<Vec<f64>, crawler_plant::ParamError> {
+    pub fn k_values(&self, points: usize) -> Result<Vec<f64>, crawler_physics::ParamError> {
         let [lo, hi] = self.limits.k;
         match self.body_length {
             BodyLength::OneWavelength => Ok(linspace(lo, hi, points)),
@@ -211,7 +211,7 @@ impl Problem {
                 let m_lo = (lo * l / TAU - 1e-9).ceil().max(1.0) as u64;
                 let m_hi = (hi * l / TAU + 1e-9).floor() as u64;
                 if m_hi < m_lo {
-                    return Err(crawler_plant::ParamError::new(
+                    return Err(crawler_physics::ParamError::new(
                         "limits.k",
                         format!("[{lo}, {hi}]"),
                         format!(
@@ -234,7 +234,7 @@ impl Problem {
         if grid.omega_points < 2
             || (grid.k_points < 2 && self.body_length == BodyLength::OneWavelength)
         {
-            return Err(crawler_plant::ParamError::new(
+            return Err(crawler_physics::ParamError::new(
                 "grid",
                 format!("{} x {}", grid.omega_points, grid.k_points),
                 "at least 2 x 2 points",
@@ -243,7 +243,7 @@ impl Problem {
         }
         let tol = grid.tie_tolerance;
         if !(0.0..=0.1).contains(&tol) {
-            return Err(crawler_plant::ParamError::new(
+            return Err(crawler_physics::ParamError::new(
                 "grid.tie_tolerance",
                 tol,
                 "a relative speed tolerance in [0, 0.1]",

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use crate::prediction::Prediction;
 
-use crawler_plant::scenario::{Limits, Task};
+use crawler_physics::scenario::{Limits, Task};
 
 use super::{BodyLength, Problem, TieBreak};
 
@@ -206,7 +206,7 @@ pub struct OptimizeReport {
 pub enum OptimizeError {
     /// Bad problem data.
     #[error(transparent)]
-    Invalid(#[from] crawler_plant::ParamError),
+    Invalid(#[from] crawler_physics::ParamError),
     /// No cell is feasible.
     #[error("infeasible: {0}")]
     Infeasible(String),

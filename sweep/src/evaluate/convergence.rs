@@ -5,9 +5,9 @@
 //!
 //! This is the one place that decides how the plant is run at a point.
 
-use crawler_plant::report::Report;
-use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::{simulate, SimulateOptions};
+use crawler_physics::report::Report;
+use crawler_physics::scenario::Scenario;
+use crawler_physics::simulate::{simulate, SimulateOptions};
 
 use crate::record::{finite, PlantResult, PlantRun};
 
@@ -33,7 +33,7 @@ pub fn plant_run(r: &Report) -> PlantRun {
 }
 
 /// Runs the plant of `scenario`; with `refine`, also at twice its cells (the plant library's
-/// [`crawler_plant::convergence::estimate`]: the same scenario with `2N` cells, so `dx` and `dt`
+/// [`crawler_physics::convergence::estimate`]: the same scenario with `2N` cells, so `dx` and `dt`
 /// halve at the same Courant number) and reports the finer run with the coarser one beside it.
 pub fn plant_with_estimate(scenario: &Scenario, refine: bool) -> Result<PlantResult, String> {
     let n = scenario.plant.numerics.cells;
@@ -44,7 +44,7 @@ pub fn plant_with_estimate(scenario: &Scenario, refine: bool) -> Result<PlantRes
             coarse: None,
         });
     }
-    let c = crawler_plant::convergence::estimate(scenario, 0, None)
+    let c = crawler_physics::convergence::estimate(scenario, 0, None)
         .map_err(|e| format!("plant at N = {n} and 2N = {}: {e}", 2 * n))?;
     Ok(PlantResult {
         run: plant_run(&c.fine),

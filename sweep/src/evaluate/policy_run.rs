@@ -3,7 +3,7 @@
 //! friction of an undisclosed pipe), with the scenario's task and stress limit; bit-identical to
 //! a co-simulated run of the same scenario and policy.
 
-use crawler_plant::scenario::Scenario;
+use crawler_physics::scenario::Scenario;
 
 use crate::plan::PolicySpec;
 use crate::record::PolicyResult;
