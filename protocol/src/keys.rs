@@ -96,6 +96,11 @@ impl RunKeys {
         self.key("actuation")
     }
 
+    /// Controller → plant: [`crate::Join`], a request to control the run (or take it over).
+    pub fn join(&self) -> String {
+        self.key("join")
+    }
+
     /// Plant → bridge: [`crate::Events`], stick-slip episodes that ended in a step.
     pub fn events(&self) -> String {
         self.key("events")

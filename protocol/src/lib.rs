@@ -5,6 +5,8 @@
 //! on this and nothing else. The byte-level description is `docs/protocol.md`.
 //!
 //! - Keys live under `crawler/<run-id>/` ([`keys::RunKeys`]).
+//! - Every message travels with an [`envelope`] (run instance, sender, sequence number) in its
+//!   attachment, which its seal covers.
 //! - Messages are MessagePack maps with named fields and a version field `v`
 //!   ([`messages::encode`], [`messages::decode`]); any MessagePack library reads them.
 //! - [`messages::decode`] bounds the size, checks the version and validates every field, so a
@@ -36,18 +38,20 @@ macro_rules! wire_name {
     };
 }
 
+pub mod envelope;
 pub mod environment;
 pub mod error;
 pub mod keys;
 pub mod limits;
 pub mod messages;
 
+pub use envelope::{Header, ProcessId, RunNonce};
 pub use environment::{Environment, MAX_ENVIRONMENT_PIECES};
 pub use error::ProtocolError;
 pub use keys::{validate_run_id, Role, RunKeys};
 pub use limits::RunLimits;
 pub use messages::{
-    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Message,
+    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Join, Message,
     Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
     ReportWindow, Series, State, Status, TaskResult, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,
     MAX_SCENARIO_NAME_LEN, PROTOCOL_VERSION,

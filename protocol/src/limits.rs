@@ -62,6 +62,11 @@ impl RunLimits {
         27 * crate::environment::MAX_ENVIRONMENT_PIECES + HEADER
     }
 
+    /// A `Join` message (two identifiers and a step).
+    pub fn join() -> usize {
+        HEADER
+    }
+
     /// A `Metrics` message (fixed size).
     pub fn metrics() -> usize {
         HEADER + 256
@@ -236,6 +241,8 @@ mod tests {
                 version: u64::MAX,
                 invalid: u64::MAX,
                 foreign: u64::MAX,
+                other_run: u64::MAX,
+                replayed: u64::MAX,
                 stale: u64::MAX,
                 duplicate: u64::MAX,
                 future: u64::MAX,
@@ -280,5 +287,12 @@ mod tests {
             ]),
         };
         assert!(encode(&m).len() <= RunLimits::metrics());
+        let join = crate::Join {
+            v: u16::MAX,
+            controller: id(),
+            policy: id(),
+            take_over: Some(u64::MAX),
+        };
+        assert!(encode(&join).len() <= RunLimits::join());
     }
 }

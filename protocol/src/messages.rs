@@ -11,7 +11,7 @@ use crate::error::ProtocolError;
 use crate::keys::Role;
 
 /// Protocol version spoken by this build.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Largest payload accepted on any key, bytes (checked before decoding).
 pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
@@ -43,6 +43,20 @@ pub fn decode<M: Message>(bytes: &[u8]) -> Result<M, ProtocolError> {
         return Err(ProtocolError::TooLarge {
             size: bytes.len(),
             limit: MAX_MESSAGE_BYTES,
+        });
+    }
+    // A map with named fields, nothing else: MessagePack decoders would also read a struct from
+    // an array of its values in field order, which the protocol does not allow.
+    if !matches!(bytes.first(), Some(0x80..=0x8f | 0xde | 0xdf)) {
+        return Err(ProtocolError::Malformed {
+            message: M::NAME,
+            reason: format!(
+                "{} where a MessagePack map with named fields is expected",
+                match bytes.first() {
+                    None => "no bytes".to_string(),
+                    Some(b) => format!("first byte 0x{b:02x}"),
+                }
+            ),
         });
     }
     let m: M = rmp_serde::from_slice(bytes).map_err(|e| ProtocolError::Malformed {
@@ -362,6 +376,35 @@ impl Message for Actuation {
     }
 }
 
+/// A controller's request to control a run, on `crawler/<run>/join`: sent (again every 500 ms)
+/// until the plant's states are addressed to it. The plant admits it at a step boundary: at once
+/// when the run has no controller, or, to take over from the run's controller, at the first
+/// boundary at or after `take_over`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Join {
+    /// Protocol version.
+    pub v: u16,
+    /// The controller's id (as in its envelope and its liveliness token).
+    pub controller: String,
+    /// Its policy's name (said in the plant's log).
+    pub policy: String,
+    /// `None`: join a run that has no controller (a run that has one keeps it). A step: take
+    /// the run over from its controller at the first step boundary at or after it (0: the next
+    /// one).
+    pub take_over: Option<u64>,
+}
+
+impl Message for Join {
+    const NAME: &'static str = "join";
+    fn version(&self) -> u16 {
+        self.v
+    }
+    fn validate(&self) -> Result<(), ProtocolError> {
+        short("join.controller", &self.controller)?;
+        short("join.policy", &self.policy)
+    }
+}
+
 /// A stick-slip episode.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeMsg {
@@ -462,8 +505,16 @@ pub struct Rejections {
     pub version: u64,
     /// Invalid values (NaN, infinite, wrong sign, wrong size, wave not fitting the body).
     pub invalid: u64,
-    /// From a controller other than the one that joined.
+    /// From a controller other than the one that joined (or, at arrival, without a valid seal,
+    /// or from a sender that may not send on the key).
     pub foreign: u64,
+    /// Sealed for another run instance (an earlier run with the same credential), or before the
+    /// receiver knew the run's instance. (Absent, as in a checkpoint of protocol 2: 0.)
+    #[serde(default)]
+    pub other_run: u64,
+    /// Not newer than the last message taken from its sender on its key: a replay. (Absent: 0.)
+    #[serde(default)]
+    pub replayed: u64,
     /// For a step already taken.
     pub stale: u64,
     /// A second answer to the current step from the joined controller.
@@ -481,6 +532,8 @@ impl Rejections {
             + self.version
             + self.invalid
             + self.foreign
+            + self.other_run
+            + self.replayed
             + self.stale
             + self.duplicate
             + self.future
@@ -1129,6 +1182,31 @@ mod tests {
     fn round_trip<M: Message + PartialEq + std::fmt::Debug>(m: &M) {
         let back: M = decode(&encode(m)).unwrap();
         assert_eq!(&back, m);
+    }
+
+    #[test]
+    fn a_message_in_array_form_is_refused_as_malformed() {
+        // the same actuation as an array of its values in field order, which MessagePack
+        // decoders would otherwise read as the struct
+        let a = Actuation {
+            v: PROTOCOL_VERSION,
+            step: 3,
+            controller: "c".into(),
+            wave: Some(wave()),
+            field: None,
+        };
+        let array = rmp_serde::to_vec(&a).unwrap();
+        assert_eq!(array[0], 0x95, "an array of 5");
+        let e = decode::<Actuation>(&array).unwrap_err().to_string();
+        assert!(
+            e.contains("first byte 0x95 where a MessagePack map with named fields is expected"),
+            "{e}"
+        );
+        assert!(matches!(
+            decode::<Actuation>(&[]),
+            Err(ProtocolError::Malformed { .. })
+        ));
+        round_trip(&a);
     }
 
     #[test]

@@ -176,9 +176,19 @@ fn samples() -> Samples {
     )
 }
 
+fn join() -> Join {
+    Join {
+        v: PROTOCOL_VERSION,
+        controller: "00000000000000ab".into(),
+        policy: "reflex".into(),
+        take_over: Some(12),
+    }
+}
+
 fn valid_messages() -> Vec<(&'static str, Vec<u8>)> {
     let (state, act, field, events, metrics, status, prediction, model) = samples();
     vec![
+        ("join", encode(&join())),
         ("state", encode(&state)),
         ("actuation", encode(&act)),
         ("field", encode(&field)),
@@ -231,6 +241,9 @@ fn decode_all(bytes: &[u8]) {
     if let Ok(m) = decode::<ModelInfo>(bytes) {
         check_decoded(&m);
     }
+    if let Ok(m) = decode::<Join>(bytes) {
+        check_decoded(&m);
+    }
 }
 
 #[test]
@@ -244,6 +257,7 @@ fn valid_messages_round_trip() {
     round_trip(&status);
     round_trip(&prediction);
     round_trip(&model);
+    round_trip(&join());
     // whatever other kinds the bytes also decode as is valid and round-trips
     for (_, bytes) in valid_messages() {
         decode_all(&bytes);
@@ -260,6 +274,8 @@ fn hostile_headers_are_refused_without_allocating() {
     assert!(decode::<State>(b"\xc6\xff\xff\xff\xff").is_err());
     // nesting 100 000 levels deep
     assert!(decode::<Status>(&vec![0x91; 100_000]).is_err());
+    // an actuation in array form (values in field order): not a map with named fields
+    assert!(decode::<Actuation>(b"\x95\x03\x01\xa1x\xc0\x90").is_err());
     // larger than the limit
     assert!(matches!(
         decode::<State>(&vec![0u8; MAX_MESSAGE_BYTES + 1]),
@@ -276,7 +292,7 @@ proptest! {
     }
 
     #[test]
-    fn mutated_messages_never_panic(which in 0usize..8, at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<prop::sample::Index>()) {
+    fn mutated_messages_never_panic(which in 0usize..9, at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<prop::sample::Index>()) {
         let (_, mut bytes) = valid_messages().swap_remove(which);
         let i = at.index(bytes.len());
         bytes[i] = byte;

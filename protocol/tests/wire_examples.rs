@@ -6,7 +6,7 @@
 
 use crawler_facts::{Metric, MetricValues};
 use crawler_protocol::{
-    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Message,
+    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Join, Message,
     Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
     ReportWindow, Role, Series, State, Status, TaskResult, WaveMsg, PROTOCOL_VERSION,
 };
@@ -27,7 +27,7 @@ fn state() -> State {
         v: V,
         step: 3,
         time: 0.003,
-        controller: "c0ffee".into(),
+        controller: "c0ffee00c0ffee00".into(),
         u: vec![0.0, 0.001],
         vel: vec![0.0, 0.5],
         tension: vec![-0.25, 0.25],
@@ -57,7 +57,7 @@ fn actuation_wave() -> Actuation {
     Actuation {
         v: V,
         step: 3,
-        controller: "c0ffee".into(),
+        controller: "c0ffee00c0ffee00".into(),
         wave: Some(wave()),
         field: None,
     }
@@ -67,9 +67,18 @@ fn actuation_field() -> Actuation {
     Actuation {
         v: V,
         step: 3,
-        controller: "c0ffee".into(),
+        controller: "c0ffee00c0ffee00".into(),
         wave: None,
         field: Some(vec![0.5, -0.5]),
+    }
+}
+
+fn join() -> Join {
+    Join {
+        v: V,
+        controller: "c0ffee00c0ffee00".into(),
+        policy: "reflex".into(),
+        take_over: Some(5000),
     }
 }
 
@@ -113,7 +122,7 @@ fn status() -> Status {
     Status {
         v: V,
         role: Role::Plant,
-        id: "5eed".into(),
+        id: "5eed00005eed0000".into(),
         state: ProcessState::Running,
         message: "step 9 of 10".into(),
         step: 9,
@@ -192,7 +201,7 @@ fn status_finished() -> Status {
 fn prediction() -> Prediction {
     Prediction {
         v: V,
-        controller: "c0ffee".into(),
+        controller: "c0ffee00c0ffee00".into(),
         policy: "wave".into(),
         step: 0,
         wave: wave(),
@@ -264,6 +273,7 @@ fn docs_show_the_real_encoding() {
         check("State (applied field)", state_field(), &doc),
         check("Actuation (wave)", actuation_wave(), &doc),
         check("Actuation (field)", actuation_field(), &doc),
+        check("Join", join(), &doc),
         check("Events", events(), &doc),
         check("Metrics", metrics(), &doc),
         check("Status", status(), &doc),

@@ -13,9 +13,11 @@
 //! them goes through the plant's router.
 //!
 //! Authentication (`docs/security.md`): the run's [`credential`] gives a zenoh password (the
-//! plant admits only sessions that know it) and a message key (every message carries a
-//! [`seal`]); [`gate`] checks each arriving payload's size and seal before anything is queued,
-//! and [`budget`] bounds every inbox in bytes.
+//! plant admits only sessions that know it) and a message key (every message carries an
+//! envelope, its run instance, sender and sequence number, and a [`seal`] over it); a process
+//! sends and receives through its [`participant`], whose [`gate`] checks each arriving payload
+//! (size, seal, run instance, sender, exactly once) before anything is queued, and [`budget`]
+//! bounds every inbox in bytes.
 
 use std::path::{Path, PathBuf};
 
@@ -26,10 +28,14 @@ use crawler_protocol::{validate_run_id, Role};
 pub mod budget;
 pub mod credential;
 pub mod gate;
+pub mod participant;
+pub mod reassembly;
 pub mod runtime_dir;
 pub mod seal;
 
 pub use credential::Credential;
+pub use crawler_protocol::{ProcessId, RunNonce};
+pub use participant::Participant;
 pub use seal::Seal;
 
 /// Network flags shared by every binary.
@@ -356,6 +362,8 @@ pub fn config(
     access: &Access,
     max_message: usize,
 ) -> anyhow::Result<zenoh::Config> {
+    // what zenoh drops for being larger than that is counted from here on
+    reassembly::count();
     match &network.config_file {
         Some(path) => {
             let mut cfg = load_config_file(path)?;
@@ -502,19 +510,26 @@ pub fn open(
         })
 }
 
-/// A short random id for a process (16 hex digits), for liveliness keys and messages.
-pub fn process_id() -> String {
-    use std::collections::hash_map::RandomState;
-    use std::hash::{BuildHasher, Hasher};
-    let mut h = RandomState::new().build_hasher();
-    h.write_u32(std::process::id());
-    h.write_u128(
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos())
-            .unwrap_or(0),
-    );
-    format!("{:016x}", h.finish())
+/// A random id for a process (16 lowercase hex digits), for its envelopes, liveliness key and
+/// messages.
+pub fn process_id() -> ProcessId {
+    let mut b = [0u8; 8];
+    if getrandom::fill(&mut b).is_err() {
+        // no random source: the clock and the pid still make a collision very unlikely
+        use std::collections::hash_map::RandomState;
+        use std::hash::{BuildHasher, Hasher};
+        let mut h = RandomState::new().build_hasher();
+        h.write_u32(std::process::id());
+        h.write_u128(
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_nanos())
+                .unwrap_or(0),
+        );
+        b = h.finish().to_le_bytes();
+    }
+    let hex: String = b.iter().map(|x| format!("{x:02x}")).collect();
+    ProcessId::parse(&hex).expect("16 lowercase hex digits")
 }
 
 #[cfg(test)]
