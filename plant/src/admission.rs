@@ -1,6 +1,7 @@
 //! Admission of the controller's actuation: one message, decoded and checked against the step
-//! the plant waits for, the controller that joined and the body it drives; whatever is rejected
-//! is counted by cause and never applied.
+//! the plant waits for, the controller that joined and the body it drives; and of controllers'
+//! join requests. Whatever is rejected is counted by cause and never applied. (What the arrival
+//! gate refused before, its envelope, seal, run instance, sender and order, is counted there.)
 //!
 //! Pure: no clock, no network, no process. The runner feeds it the bytes that arrive and applies
 //! what it admits; the order of the checks (decoding, sender, step, body) decides the cause a
@@ -10,7 +11,9 @@ use crawler_physics::error::ParamError;
 use crawler_physics::execution::Actuation;
 use crawler_physics::params::Boundary;
 use crawler_physics::wave::Wave;
-use crawler_protocol::{decode, Actuation as ActuationMsg, ProtocolError, Rejections, WaveMsg};
+use crawler_protocol::{
+    decode, Actuation as ActuationMsg, Join, ProcessId, ProtocolError, Rejections, WaveMsg,
+};
 
 /// Why an actuation message was rejected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -146,19 +149,52 @@ impl Admission {
         self.rejections
     }
 
-    /// Decodes and checks `bytes` as the answer of controller `joined` to the state of step
-    /// `step`. The command returned can be applied as is; a rejected message is counted.
-    pub fn admit(&mut self, bytes: &[u8], step: u64, joined: &str) -> Result<Actuation, Rejection> {
-        self.classify(bytes, step, joined)
-            .map_err(|(kind, reason)| {
-                let count = kind.counter(&mut self.rejections);
-                *count += 1;
-                Rejection {
-                    kind,
-                    count: *count,
-                    reason,
-                }
-            })
+    /// Decodes and checks `bytes`, sent by `sender` (its envelope's), as the answer of
+    /// controller `joined` to the state of step `step`. The command returned can be applied as
+    /// is; a rejected message is counted.
+    pub fn admit(
+        &mut self,
+        bytes: &[u8],
+        sender: &ProcessId,
+        step: u64,
+        joined: &ProcessId,
+    ) -> Result<Actuation, Rejection> {
+        let classified = if sender != joined {
+            Err((
+                Reject::Foreign,
+                format!("actuation sent by {sender}, the run's controller is {joined}"),
+            ))
+        } else {
+            self.classify(bytes, step, joined.as_str())
+        };
+        classified.map_err(|(kind, reason)| self.count(kind, reason))
+    }
+
+    /// Decodes and checks a join request sent by `sender`: the controller it names must be its
+    /// sender. A rejected request is counted.
+    pub fn join(&mut self, bytes: &[u8], sender: &ProcessId) -> Result<Join, Rejection> {
+        let classified = match decode::<Join>(bytes) {
+            Err(e) => Err((cause(&e), e.to_string())),
+            Ok(j) if j.controller != sender.as_str() => Err((
+                Reject::Foreign,
+                format!(
+                    "a join request for controller {:?} sent by {sender}",
+                    j.controller
+                ),
+            )),
+            Ok(j) => Ok(j),
+        };
+        classified.map_err(|(kind, reason)| self.count(kind, reason))
+    }
+
+    fn count(&mut self, kind: Reject, reason: String) -> Rejection {
+        let count = kind.counter(&mut self.rejections);
+        *count += 1;
+        Rejection {
+            kind,
+            count: *count,
+            reason,
+        }
     }
 
     fn classify(&self, bytes: &[u8], n: u64, joined: &str) -> Result<Actuation, (Reject, String)> {
@@ -215,6 +251,11 @@ mod tests {
     use std::f64::consts::TAU;
 
     const CELLS: usize = 64;
+    const C1: &str = "00000000000000c1";
+
+    fn c1() -> ProcessId {
+        ProcessId::parse(C1).unwrap()
+    }
     const LENGTH: f64 = 0.25;
 
     fn wave(k: f64) -> WaveMsg {
@@ -241,13 +282,13 @@ mod tests {
     }
 
     fn kind(bytes: &[u8], n: u64) -> Reject {
-        admission().admit(bytes, n, "c1").unwrap_err().kind
+        admission().admit(bytes, &c1(), n, &c1()).unwrap_err().kind
     }
 
     #[test]
     fn the_answer_to_the_current_step_is_admitted_as_the_plants_wave_or_field() {
-        let a = actuation(7, "c1");
-        let got = admission().admit(&encode(&a), 7, "c1").unwrap();
+        let a = actuation(7, C1);
+        let got = admission().admit(&encode(&a), &c1(), 7, &c1()).unwrap();
         assert_eq!(
             got,
             Actuation::Wave(Wave {
@@ -261,10 +302,10 @@ mod tests {
         let a = ActuationMsg {
             wave: None,
             field: Some(field.clone()),
-            ..actuation(7, "c1")
+            ..actuation(7, C1)
         };
         assert_eq!(
-            admission().admit(&encode(&a), 7, "c1").unwrap(),
+            admission().admit(&encode(&a), &c1(), 7, &c1()).unwrap(),
             Actuation::Field(field)
         );
     }
@@ -274,67 +315,108 @@ mod tests {
         let n = 10;
         let bytes = |a: &ActuationMsg| encode(a);
         assert_eq!(kind(&[0xc1, 0x00], n), Reject::Malformed);
-        assert_eq!(kind(&bytes(&actuation(n, "c1"))[..5], n), Reject::Malformed);
+        assert_eq!(kind(&bytes(&actuation(n, C1))[..5], n), Reject::Malformed);
         let other_version = ActuationMsg {
             v: PROTOCOL_VERSION + 1,
-            ..actuation(n, "c1")
+            ..actuation(n, C1)
         };
         assert_eq!(kind(&bytes(&other_version), n), Reject::Version);
         assert_eq!(kind(&bytes(&actuation(n, "intruder")), n), Reject::Foreign);
-        assert_eq!(kind(&bytes(&actuation(n - 1, "c1")), n), Reject::Duplicate);
-        assert_eq!(kind(&bytes(&actuation(n - 2, "c1")), n), Reject::Stale);
-        assert_eq!(kind(&bytes(&actuation(0, "c1")), n), Reject::Stale);
-        assert_eq!(kind(&bytes(&actuation(n + 1, "c1")), n), Reject::Future);
+        assert_eq!(kind(&bytes(&actuation(n - 1, C1)), n), Reject::Duplicate);
+        assert_eq!(kind(&bytes(&actuation(n - 2, C1)), n), Reject::Stale);
+        assert_eq!(kind(&bytes(&actuation(0, C1)), n), Reject::Stale);
+        assert_eq!(kind(&bytes(&actuation(n + 1, C1)), n), Reject::Future);
         let invalid = [
             // a wavelength that does not fit the body
             ActuationMsg {
                 wave: Some(wave(1.5 * TAU / LENGTH)),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             // fewer than 8 cells per wavelength
             ActuationMsg {
                 wave: Some(wave(16.0 * TAU / LENGTH)),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             ActuationMsg {
                 wave: Some(WaveMsg {
                     f0: -1.0,
                     ..wave(TAU / LENGTH)
                 }),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             ActuationMsg {
                 wave: Some(WaveMsg {
                     omega: f64::NAN,
                     ..wave(TAU / LENGTH)
                 }),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             ActuationMsg {
                 wave: None,
                 field: Some(vec![0.0; CELLS + 1]),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             ActuationMsg {
                 wave: None,
                 field: Some(vec![f64::INFINITY; CELLS]),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             ActuationMsg {
                 wave: None,
                 field: None,
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
             ActuationMsg {
                 field: Some(vec![0.0; CELLS]),
-                ..actuation(n, "c1")
+                ..actuation(n, C1)
             },
         ];
         for a in &invalid {
-            let r = admission().admit(&bytes(a), n, "c1").unwrap_err();
+            let r = admission().admit(&bytes(a), &c1(), n, &c1()).unwrap_err();
             assert_eq!(r.kind, Reject::Invalid, "{a:?}: {}", r.reason);
             assert!(r.reason.contains("allowed"), "{}", r.reason);
         }
+    }
+
+    #[test]
+    fn an_answer_sent_by_another_process_than_the_joined_controller_is_foreign() {
+        // the payload names the joined controller, the sealed envelope names its real sender
+        let other = ProcessId::parse("00000000000000c2").unwrap();
+        let r = admission()
+            .admit(&encode(&actuation(7, C1)), &other, 7, &c1())
+            .unwrap_err();
+        assert_eq!(r.kind, Reject::Foreign);
+        assert!(r.reason.contains("sent by 00000000000000c2"), "{}", r.reason);
+    }
+
+    #[test]
+    fn a_join_request_is_admitted_only_from_the_controller_it_names() {
+        let join = |controller: &str| Join {
+            v: PROTOCOL_VERSION,
+            controller: controller.into(),
+            policy: "wave".into(),
+            take_over: Some(100),
+        };
+        let mut adm = admission();
+        assert_eq!(adm.join(&encode(&join(C1)), &c1()).unwrap(), join(C1));
+        let r = adm
+            .join(&encode(&join("00000000000000c2")), &c1())
+            .unwrap_err();
+        assert_eq!(r.kind, Reject::Foreign);
+        let r = adm.join(&[0xc1], &c1()).unwrap_err();
+        assert_eq!(r.kind, Reject::Malformed);
+        let r = adm
+            .join(
+                &encode(&Join {
+                    v: PROTOCOL_VERSION + 1,
+                    ..join(C1)
+                }),
+                &c1(),
+            )
+            .unwrap_err();
+        assert_eq!(r.kind, Reject::Version);
+        let counted = adm.rejections();
+        assert_eq!((counted.foreign, counted.malformed, counted.version), (1, 1, 1));
     }
 
     #[test]
@@ -348,7 +430,7 @@ mod tests {
         assert_eq!(kind(&encode(&bad), 9), Reject::Foreign);
         let bad = ActuationMsg {
             wave: Some(wave(1.5 * TAU / LENGTH)),
-            ..actuation(3, "c1")
+            ..actuation(3, C1)
         };
         assert_eq!(kind(&encode(&bad), 9), Reject::Stale);
     }
@@ -361,15 +443,15 @@ mod tests {
             ..Rejections::default()
         };
         let mut adm = Admission::new(CELLS, LENGTH, Boundary::Periodic, resumed);
-        let stale = encode(&actuation(1, "c1"));
+        let stale = encode(&actuation(1, C1));
         let foreign = encode(&actuation(9, "x"));
         for i in 1..=3 {
-            let r = adm.admit(&stale, 9, "c1").unwrap_err();
+            let r = adm.admit(&stale, &c1(), 9, &c1()).unwrap_err();
             assert_eq!((r.kind, r.count), (Reject::Stale, 41 + i));
-            let r = adm.admit(&foreign, 9, "c1").unwrap_err();
+            let r = adm.admit(&foreign, &c1(), 9, &c1()).unwrap_err();
             assert_eq!((r.kind, r.count), (Reject::Foreign, i));
         }
-        adm.admit(&encode(&actuation(9, "c1")), 9, "c1").unwrap();
+        adm.admit(&encode(&actuation(9, C1)), &c1(), 9, &c1()).unwrap();
         let r = adm.rejections();
         assert_eq!((r.stale, r.foreign, r.overflow), (44, 3, 5));
         assert_eq!(r.total(), 44 + 3 + 5);
@@ -420,10 +502,10 @@ mod tests {
             let a = ActuationMsg {
                 wave: (!field).then_some(WaveMsg { f0, k: m * TAU / LENGTH, omega, phase: 0.3 }),
                 field: field.then(|| vec![0.01; len]),
-                ..actuation(4, "c1")
+                ..actuation(4, C1)
             };
             let admitted = Admission::new(CELLS, LENGTH, boundary, Rejections::default())
-                .admit(&encode(&a), 4, "c1");
+                .admit(&encode(&a), &c1(), 4, &c1());
             let mut s = slave(boundary);
             let applied = match (&a.wave, &a.field) {
                 (Some(w), _) => s.set_wave(wave_of(w)),

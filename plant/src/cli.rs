@@ -56,6 +56,11 @@ struct RunArgs {
     /// Seconds to wait for the controller's answer to one state.
     #[arg(long, default_value_t = 30.0)]
     step_timeout: f64,
+    /// When the run's controller leaves: `stop` (with a checkpoint, exit code 3), or `wait` (keep
+    /// the clock at its step until a controller takes the run over with `crawler-controller run
+    /// --take-over`; `wait:SECONDS` bounds the wait, by default --wait-timeout, then stop).
+    #[arg(long, default_value = "stop", value_name = "stop|wait[:SECONDS]")]
+    on_controller_lost: String,
     /// Print the final report as JSON (the same object as `simulate --json`).
     #[arg(long)]
     json: bool,
@@ -179,6 +184,7 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
     check_checkpoint_path(&checkpoint)?;
     let wait_timeout = seconds("wait-timeout", a.wait_timeout)?;
     let step_timeout = seconds("step-timeout", a.step_timeout)?;
+    let on_controller_lost = on_lost(&a.on_controller_lost, wait_timeout)?;
     for note in crate::preflight::notes(&scenario) {
         eprintln!("crawler-plant: {note}");
     }
@@ -196,6 +202,7 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
         checkpoint,
         resume,
         max_episodes: a.max_episodes,
+        on_controller_lost,
     };
     match run(opts, tx, rx)? {
         Outcome::Finished(report) => {
@@ -221,6 +228,27 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
             }
             Ok(exit.into())
         }
+    }
+}
+
+/// `--on-controller-lost`: `stop`, `wait` (as long as `wait_timeout`) or `wait:SECONDS`.
+fn on_lost(text: &str, wait_timeout: std::time::Duration) -> anyhow::Result<crate::runner::OnLost> {
+    use crate::runner::OnLost;
+    let bad = || {
+        anyhow::anyhow!(
+            "invalid --on-controller-lost = {text:?}: allowed stop, wait or wait:SECONDS (0 < SECONDS < 1e9)"
+        )
+    };
+    match text.split_once(':') {
+        None if text == "stop" => Ok(OnLost::Stop),
+        None if text == "wait" => Ok(OnLost::Wait(wait_timeout)),
+        Some(("wait", secs)) => {
+            let x: f64 = secs.parse().map_err(|_| bad())?;
+            seconds("on-controller-lost", x)
+                .map(OnLost::Wait)
+                .map_err(|_| bad())
+        }
+        _ => Err(bad()),
     }
 }
 
@@ -333,6 +361,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 crawler_cli::stdout::line(md.to_json())?;
             }
             Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runner::OnLost;
+    use std::time::Duration;
+
+    #[test]
+    fn on_controller_lost_is_stop_wait_or_wait_for_some_seconds() {
+        let w = Duration::from_secs(60);
+        assert_eq!(on_lost("stop", w).unwrap(), OnLost::Stop);
+        assert_eq!(on_lost("wait", w).unwrap(), OnLost::Wait(w));
+        assert_eq!(
+            on_lost("wait:2.5", w).unwrap(),
+            OnLost::Wait(Duration::from_millis(2500))
+        );
+        for bad in ["", "Stop", "wait:", "wait:-1", "wait:0", "wait:nan", "stop:3", "go"] {
+            let e = on_lost(bad, w).unwrap_err().to_string();
+            assert!(
+                e.contains("invalid --on-controller-lost") && e.contains("allowed stop, wait or wait:SECONDS"),
+                "{bad}: {e}"
+            );
         }
     }
 }

@@ -1,15 +1,26 @@
 //! `crawler-plant run`: the plant as a co-simulation slave, owning the clock.
 //!
-//! Lockstep on a fixed-step clock: the plant publishes `State(n)` at `t = t0 + n H`, the controller
-//! that joined the run answers `Actuation(n)`, the plant applies it over `[t_n, t_{n+1}]` and
-//! publishes `State(n + 1)`. What [`crate::admission`] rejects (malformed, another protocol
-//! version, invalid, from another controller, stale, a duplicate, for a future step) is counted,
-//! never applied. A controller that leaves (its liveliness token disappears: exit, crash,
+//! Lockstep on a fixed-step clock: the plant publishes `State(n)` at `t = t0 + n H` to the
+//! controller of step n, the controller answers `Actuation(n)`, the plant applies it over
+//! `[t_n, t_{n+1}]` and publishes `State(n + 1)`. What [`crate::admission`] rejects (malformed,
+//! another protocol version, invalid, from another controller, stale, a duplicate, for a future
+//! step) is counted, never applied; what the arrival gate refused (no seal, another run
+//! instance, a replay, beyond the budget) is counted there.
+//!
+//! Controllers join with sealed requests ([`seat`]): the first plain request takes a run that
+//! has no controller; a take-over request takes it over at a step boundary (the first at or
+//! after the step it asks for), so that every step is answered by exactly one controller and the
+//! states say which. A controller that leaves (its liveliness token disappears: exit, crash,
 //! `kill -9`) stops the run with a checkpoint from which `crawler-plant run --resume` continues
-//! bit-identically.
+//! bit-identically, or, with `--on-controller-lost wait`, keeps the clock at its step until
+//! another controller takes over.
 //!
 //! The state machine reads an [`Inbox`] and writes to an [`Outbox`]; [`run`] connects them to
 //! the zenoh [`Link`], tests to channels.
+
+mod network;
+mod publisher;
+pub mod seat;
 
 use std::cell::RefCell;
 use std::path::PathBuf;
@@ -19,26 +30,25 @@ use std::time::{Duration, Instant};
 use crossbeam_channel::{Receiver, Sender};
 
 use crawler_cli::Exit;
-use crawler_facts::Metric;
-use crawler_physics::execution::{
-    Actuation, Briefing, Controller, Execution, ExecutionError, Observation, Observer, Resume,
-    Start, Stepped,
-};
+use crawler_physics::execution::{Briefing, Execution, ExecutionError, Observer, Resume, Start};
 use crawler_physics::model_description::ModelDescription;
-use crawler_physics::plant::{Drive, Plant};
+use crawler_physics::plant::Plant;
 use crawler_physics::report::Report;
 use crawler_physics::scenario::Scenario;
 use crawler_protocol::{
-    encode, Applied, Environment, EpisodeMsg, Events, FinalReport, Metrics as MetricsMsg,
-    ModelInfo, ProcessState, Rejections, Role, RunLimits, State, Status, WaveMsg, PROTOCOL_VERSION,
+    encode, Environment, FinalReport, ModelInfo, ProcessId, ProcessState, Rejections, Role,
+    State, Status, PROTOCOL_VERSION,
 };
 use crawler_transport::Network as NetworkSpec;
 
 use crate::access::PlantAccess;
-use crate::admission::{Admission, Rejection};
+use crate::admission::Admission;
 use crate::checkpoint::Checkpoint;
 use crate::link::{Control, Inbox, Link, Outbox, Topic};
 use crate::wire::wire_report;
+
+pub use publisher::applied;
+use seat::{Controller as Seated, Heard, Seat};
 
 /// Republish the current state if no valid answer came within this time.
 const RESEND: Duration = Duration::from_millis(500);
@@ -62,6 +72,29 @@ pub struct RunOptions {
     pub resume: Option<Checkpoint>,
     /// Episodes listed in the report.
     pub max_episodes: usize,
+    /// What to do when the run's controller leaves.
+    pub on_controller_lost: OnLost,
+}
+
+/// What the plant does when the run's controller leaves (its liveliness token disappears).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OnLost {
+    /// Stop with a checkpoint (exit code 3).
+    Stop,
+    /// Keep the clock at its step and wait this long for a controller to take the run over
+    /// (then stop as above).
+    Wait(Duration),
+}
+
+/// What the execution's controller and its observer share: who controls the run, the admission
+/// of what the controllers send, and the last state published (resent, and readdressed when a
+/// controller takes over a vacant run).
+pub(crate) struct Shared {
+    pub seat: Seat,
+    pub admission: Admission,
+    pub state: Option<State>,
+    /// Controllers told that the run keeps its controller (each is told once).
+    pub refused_joins: std::collections::BTreeSet<ProcessId>,
 }
 
 /// How a run ended.
@@ -90,7 +123,10 @@ pub fn run(
     control_rx: Receiver<Control>,
 ) -> anyhow::Result<Outcome> {
     let id = crawler_transport::process_id();
-    let mut runner = Runner::new(opts, id.clone())?;
+    // this run instance: every message of the run carries it, so a kept credential does not
+    // make two runs one
+    let nonce = crawler_transport::participant::fresh_nonce()?;
+    let mut runner = Runner::new(opts, id)?;
     let info = runner.model_info();
     let environment = runner.environment();
     // Created before the session, removed (the credential and zenoh's user file, if the plant
@@ -111,7 +147,7 @@ pub fn run(
     }
     let (link, inbox) = Link::open(
         &runner.opts.network,
-        &id,
+        (id, nonce),
         (info, environment),
         (&access.access, access.seal.clone()),
         control_tx,
@@ -130,15 +166,16 @@ pub fn run(
 pub struct Runner {
     execution: Execution,
     scenario: Scenario,
-    admission: Rc<RefCell<Admission>>,
-    joined: Option<String>,
+    /// Set once the lockstep starts (it needs the inbox's view of the admitted senders).
+    shared: Option<Rc<RefCell<Shared>>>,
+    rejections: Rejections,
     opts: RunOptions,
-    id: String,
+    id: ProcessId,
 }
 
 impl Runner {
     /// The plant of `opts` (fresh, or restored from its checkpoint), ready to run as process `id`.
-    pub fn new(opts: RunOptions, id: String) -> anyhow::Result<Self> {
+    pub fn new(opts: RunOptions, id: ProcessId) -> anyhow::Result<Self> {
         let (scenario, execution, rejections) = match &opts.resume {
             Some(c) => {
                 let resume = Resume {
@@ -159,17 +196,11 @@ impl Runner {
                 (opts.scenario.clone(), execution, Rejections::default())
             }
         };
-        let p = &scenario.plant;
         Ok(Self {
-            admission: Rc::new(RefCell::new(Admission::new(
-                p.numerics.cells,
-                p.length,
-                p.boundary,
-                rejections,
-            ))),
+            shared: None,
+            rejections,
             execution,
             scenario,
-            joined: None,
             opts,
             id,
         })
@@ -223,10 +254,12 @@ impl Runner {
         &self.opts.network.run_id
     }
 
-    /// Everything rejected so far: by admission, and at arrival (an oversized payload counts as
-    /// malformed, an unsealed one as foreign, one beyond the inbox's budget as overflow).
+    /// Everything rejected so far: by admission, and at arrival.
     fn rejected(&self, inbox: &Inbox) -> Rejections {
-        rejected(&self.admission.borrow(), inbox)
+        match &self.shared {
+            Some(s) => rejected(&s.borrow().admission, inbox),
+            None => add_arrivals(self.rejections, inbox),
+        }
     }
 
     fn status(
@@ -238,6 +271,12 @@ impl Runner {
         rejected: Rejections,
     ) {
         publish_status(out, &self.id, (state, message, step), rejected, None);
+    }
+
+    fn ever_joined(&self) -> bool {
+        self.shared
+            .as_ref()
+            .is_some_and(|s| s.borrow().seat.ever_joined())
     }
 
     fn stop(
@@ -260,13 +299,12 @@ impl Runner {
         };
         // Before a controller joins nothing has been simulated: no checkpoint (a resumed run's
         // own checkpoint stays as it was).
-        let path = match self.joined {
-            Some(_) => {
-                let path = self.opts.checkpoint.clone();
-                ckpt.save(&path)?;
-                Some(path)
-            }
-            None => None,
+        let path = if self.ever_joined() {
+            let path = self.opts.checkpoint.clone();
+            ckpt.save(&path)?;
+            Some(path)
+        } else {
+            None
         };
         let state = if exit == Exit::Interrupted {
             ProcessState::Stopped
@@ -291,11 +329,13 @@ impl Runner {
         })
     }
 
+    /// Waits for the run's first controller: a plain join request, or a take-over due at the
+    /// first step (later take-overs are kept for their step).
     fn wait_for_controller(
         &mut self,
         inbox: &Inbox,
         out: &impl Outbox,
-    ) -> Result<String, anyhow::Result<Outcome>> {
+    ) -> Result<(), anyhow::Result<Outcome>> {
         let what = format!(
             "waiting for a controller to join {} (start one with: crawler-controller run --run-id {}); timeout {:.0} s",
             self.opts.network.describe(),
@@ -310,21 +350,51 @@ impl Runner {
             self.plant().macro_step(),
             self.rejected(inbox),
         );
+        let first = self.plant().macro_step();
+        let shared = self.shared.clone().expect("the lockstep set it up");
         let deadline = Instant::now() + self.opts.wait_timeout;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
-            match inbox.control.recv_timeout(left) {
-                Ok(Control::ControllerUp(id)) => return Ok(id),
-                Ok(Control::ControllerDown(_)) => {}
-                Ok(Control::Interrupt) => {
-                    return Err(self.stop(
-                        inbox,
-                        out,
-                        "interrupted while waiting for a controller".into(),
-                        Exit::Interrupted,
-                    ))
-                }
-                Err(_) => {
+            crossbeam_channel::select! {
+                recv(inbox.control) -> ev => match ev {
+                    Ok(Control::Interrupt) => {
+                        return Err(self.stop(
+                            inbox,
+                            out,
+                            "interrupted while waiting for a controller".into(),
+                            Exit::Interrupted,
+                        ))
+                    }
+                    Ok(Control::ControllerDown(id)) => {
+                        shared.borrow_mut().seat.left(&id);
+                    }
+                    Err(_) => {}
+                },
+                recv(inbox.joins) -> m => {
+                    let Ok(m) = m else { continue };
+                    let m = m.get();
+                    let mut s = shared.borrow_mut();
+                    let join = s.admission.join(&m.bytes, &m.header.sender);
+                    match join {
+                        Err(r) => network::warn(&r),
+                        Ok(j) => {
+                            let heard = s.seat.hear(
+                                Seated { id: m.header.sender, policy: j.policy },
+                                j.take_over,
+                                first,
+                            );
+                            match heard {
+                                Heard::Admitted(_) => return Ok(()),
+                                Heard::Requested { at, again: false } => eprintln!(
+                                    "crawler-plant: controller {} takes the run over at step {at}",
+                                    m.header.sender
+                                ),
+                                _ => {}
+                            }
+                        }
+                    }
+                },
+                default(left) => {
                     let reason = format!(
                         "no controller joined within {:.0} s",
                         self.opts.wait_timeout.as_secs_f64()
@@ -335,19 +405,26 @@ impl Runner {
         }
     }
 
-    /// Waits for a controller, then steps in lockstep with it until the end of the run or a
-    /// stop (controller lost, timeout, interrupt, discarded step).
+    /// Waits for a controller, then steps in lockstep with the run's controllers until the end
+    /// of the run or a stop (controller lost, timeout, interrupt, discarded step).
     pub fn lockstep(&mut self, inbox: &Inbox, out: &impl Outbox) -> anyhow::Result<Outcome> {
-        let joined = match self.wait_for_controller(inbox, out) {
-            Ok(id) => id,
-            Err(outcome) => return outcome,
-        };
+        let p = &self.scenario.plant;
+        let shared = Rc::new(RefCell::new(Shared {
+            seat: Seat::new(inbox.controllers.clone()),
+            admission: Admission::new(p.numerics.cells, p.length, p.boundary, self.rejections),
+            state: None,
+            refused_joins: Default::default(),
+        }));
+        self.shared = Some(shared.clone());
+        if let Err(outcome) = self.wait_for_controller(inbox, out) {
+            return outcome;
+        }
         let last_step = self.execution.last_step();
+        let joined = shared.borrow().seat.joined().cloned().expect("admitted");
         eprintln!(
             "crawler-plant: controller {joined} joined run {}; stepping to step {last_step}",
             self.run_id()
         );
-        self.joined = Some(joined.clone());
         let first = self.plant().macro_step();
         let started = Instant::now();
         let bar = crawler_cli::progress::bar(last_step, "co-simulating");
@@ -359,32 +436,33 @@ impl Runner {
             first,
             self.rejected(inbox),
         );
-        let state = Rc::new(RefCell::new(Vec::new()));
-        let mut publisher = Publisher {
+        let mut publisher = publisher::Publisher {
             out,
             inbox,
-            admission: self.admission.clone(),
-            id: &self.id,
-            joined: &joined,
-            state: state.clone(),
+            shared: shared.clone(),
+            id: self.id,
             tension: Vec::with_capacity(self.plant().cells()),
             bar: &bar,
             last_status: Instant::now(),
             announced: false,
         };
         publisher.publish_state(self.execution.plant(), last_step);
-        let mut network = JoinedController {
+        let mut network = network::Network {
             inbox,
             out,
-            admission: self.admission.clone(),
-            joined: &joined,
+            shared: shared.clone(),
+            id: self.id,
             step_timeout: self.opts.step_timeout,
-            state,
+            on_lost: self.opts.on_controller_lost,
             last_answer: Instant::now(),
         };
         let observers: &mut [&mut dyn Observer] = &mut [&mut publisher];
         let result = self.execution.run(&mut network, observers);
-        let state_bytes = network.state.borrow().len();
+        let state_bytes = shared
+            .borrow()
+            .state
+            .as_ref()
+            .map_or(0, |s| encode(s).len());
         match result {
             Ok(()) => {}
             Err(ExecutionError::Stopped(Stop { reason, exit })) => {
@@ -410,6 +488,18 @@ impl Runner {
             "crawler-plant: lockstep: {steps} steps in {secs:.3} s ({:.0} steps/s, {state_bytes} bytes per state)",
             steps as f64 / secs
         );
+        let history = shared.borrow().seat.history().to_vec();
+        if history.len() > 1 {
+            let turns: Vec<String> = history
+                .iter()
+                .enumerate()
+                .map(|(i, t)| {
+                    let end = history.get(i + 1).map_or(last_step, |next| next.first);
+                    format!("{} steps {} to {}", t.controller, t.first, end.saturating_sub(1))
+                })
+                .collect();
+            eprintln!("crawler-plant: controllers: {}", turns.join(", "));
+        }
         self.finish(inbox, out)
     }
 
@@ -429,7 +519,7 @@ impl Runner {
         let rejected = self.rejected(inbox);
         let last_step = self.execution.last_step();
         let message = format!(
-            "finished at step {last_step}; rejected actuation: {}",
+            "finished at step {last_step}; rejected messages: {}",
             rejected.total()
         );
         publish_status(
@@ -440,28 +530,42 @@ impl Runner {
             report,
         );
         if rejected.total() > 0 {
-            eprintln!("crawler-plant: rejected actuation messages: {rejected:?}");
+            eprintln!("crawler-plant: rejected messages: {rejected:?}");
+        }
+        let dropped = crawler_transport::reassembly::dropped();
+        if dropped > 0 {
+            eprintln!(
+                "crawler-plant: {dropped} messages larger than zenoh reassembles for this run were dropped on arrival"
+            );
         }
         Ok(Outcome::Finished(Box::new(rep?)))
     }
 }
 
-/// Everything rejected so far: by `admission`, and at arrival (an oversized payload counts as
-/// malformed, an unsealed one as foreign, one beyond the inbox's budget as overflow).
-fn rejected(admission: &Admission, inbox: &Inbox) -> Rejections {
-    let r = admission.rejections();
+/// `r` with what the arrival gate refused added: an oversized payload counts as malformed, one
+/// without a valid envelope or seal or from a sender that may not send there as foreign, one of
+/// another run instance as `other_run`, a replay as `replayed`, one beyond a budget as overflow.
+fn add_arrivals(r: Rejections, inbox: &Inbox) -> Rejections {
+    let a = &inbox.refused;
     Rejections {
-        malformed: r.malformed + inbox.refused.oversize(),
-        foreign: r.foreign + inbox.refused.unsealed(),
-        overflow: r.overflow + inbox.overflow(),
+        malformed: r.malformed + a.oversize(),
+        foreign: r.foreign + a.unsealed() + a.foreign(),
+        other_run: r.other_run + a.other_run(),
+        replayed: r.replayed + a.replayed(),
+        overflow: r.overflow + a.overflow(),
         ..r
     }
 }
 
+/// Everything rejected so far: by `admission`, and at arrival.
+pub(crate) fn rejected(admission: &Admission, inbox: &Inbox) -> Rejections {
+    add_arrivals(admission.rejections(), inbox)
+}
+
 /// Publishes the plant's status `(state, message, step)`.
-fn publish_status(
+pub(crate) fn publish_status(
     out: &impl Outbox,
-    id: &str,
+    id: &ProcessId,
     (state, message, step): (ProcessState, &str, u64),
     rejected: Rejections,
     report: Option<FinalReport>,
@@ -480,243 +584,7 @@ fn publish_status(
 }
 
 /// Why the network controller stopped the run, and the exit code it means.
-struct Stop {
+pub(crate) struct Stop {
     reason: String,
     exit: Exit,
-}
-
-/// The joined controller as the execution's controller: waits for its answer to each state
-/// (the state itself is published by the [`Publisher`]), resending the state while none comes.
-struct JoinedController<'a, O: Outbox> {
-    inbox: &'a Inbox,
-    out: &'a O,
-    admission: Rc<RefCell<Admission>>,
-    joined: &'a str,
-    step_timeout: Duration,
-    /// The last state published, encoded (resent from here).
-    state: Rc<RefCell<Vec<u8>>>,
-    /// When the joined controller's last valid answer arrived: how fast a lost controller is
-    /// noticed is measured from there.
-    last_answer: Instant,
-}
-
-impl<O: Outbox> Controller for JoinedController<'_, O> {
-    type Stop = Stop;
-
-    fn act(&mut self, obs: &Observation<'_>) -> Result<Option<Actuation>, Stop> {
-        let n = obs.step;
-        let joined = self.joined;
-        let deadline = Instant::now() + self.step_timeout;
-        let mut resend = Instant::now() + RESEND;
-        loop {
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(Stop {
-                    reason: format!(
-                        "controller {joined} did not answer step {n} within {:.1} s",
-                        self.step_timeout.as_secs_f64()
-                    ),
-                    exit: Exit::Timeout,
-                });
-            }
-            let wake = resend.min(deadline);
-            crossbeam_channel::select! {
-                recv(self.inbox.control) -> ev => match ev {
-                    Ok(Control::ControllerDown(id)) if id == joined => {
-                        return Err(Stop {
-                            reason: format!(
-                                "controller {joined} left the run at step {n} (its liveliness token disappeared {} ms after its last answer)",
-                                self.last_answer.elapsed().as_millis()
-                            ),
-                            exit: Exit::PeerLost,
-                        });
-                    }
-                    Ok(Control::Interrupt) => {
-                        return Err(Stop {
-                            reason: format!("interrupted at step {n}"),
-                            exit: Exit::Interrupted,
-                        });
-                    }
-                    Ok(Control::ControllerUp(id)) if id != joined => {
-                        eprintln!("crawler-plant: another controller {id} appeared; the run keeps {joined} and rejects the others");
-                    }
-                    _ => {}
-                },
-                recv(self.inbox.data) -> bytes => {
-                    let Ok(bytes) = bytes else { continue };
-                    let admitted = self.admission.borrow_mut().admit(bytes.get(), n, joined);
-                    match admitted {
-                        Ok(command) => {
-                            self.last_answer = Instant::now();
-                            return Ok(Some(command));
-                        }
-                        Err(rejection) => warn(&rejection),
-                    }
-                },
-                default(wake.saturating_duration_since(now)) => {
-                    if Instant::now() >= resend {
-                        self.out.put(Topic::State, self.state.borrow().clone());
-                        resend = Instant::now() + RESEND;
-                    }
-                },
-            }
-        }
-    }
-}
-
-fn warn(rejection: &Rejection) {
-    if rejection.worth_reporting() {
-        eprintln!(
-            "crawler-plant: rejected actuation ({:?}, #{}): {}",
-            rejection.kind, rejection.count, rejection.reason
-        );
-    }
-}
-
-/// Publishes what each step produced (its episodes, the blocks it closed, the next state) and
-/// the progress, as an observer of the execution.
-struct Publisher<'a, O: Outbox> {
-    out: &'a O,
-    inbox: &'a Inbox,
-    admission: Rc<RefCell<Admission>>,
-    id: &'a str,
-    joined: &'a str,
-    /// The last state published, encoded (the network controller resends it).
-    state: Rc<RefCell<Vec<u8>>>,
-    tension: Vec<f64>,
-    bar: &'a crawler_cli::progress::ProgressBar,
-    last_status: Instant,
-    /// True once the end of the run by its task was said.
-    announced: bool,
-}
-
-impl<O: Outbox> Publisher<'_, O> {
-    fn publish_state(&mut self, plant: &Plant, last_step: u64) {
-        let n = plant.macro_step();
-        self.tension.clear();
-        self.tension.extend(plant.tension());
-        let out = plant.outputs();
-        let s = State {
-            v: PROTOCOL_VERSION,
-            step: n,
-            time: plant.time(),
-            controller: self.joined.to_string(),
-            u: plant.displacement().to_vec(),
-            vel: plant.velocity().to_vec(),
-            tension: self.tension.clone(),
-            stuck: plant.stuck().to_vec(),
-            mean_speed: out.mean_speed,
-            input_power: out.input_power,
-            last: n >= last_step,
-            applied: applied(plant),
-        };
-        let bytes = encode(&s);
-        self.out.put(Topic::State, bytes.clone());
-        *self.state.borrow_mut() = bytes;
-    }
-
-    fn publish_step_outputs(&self, plant: &Plant) {
-        let n = plant.macro_step();
-        // At most N episodes per message, the run's legal size (rarely more than one message).
-        let per_message = RunLimits::new(plant.cells()).episodes_per_message();
-        for chunk in plant.episodes().chunks(per_message) {
-            let ev = Events {
-                v: PROTOCOL_VERSION,
-                step: n,
-                time: plant.time(),
-                episodes: chunk
-                    .iter()
-                    .map(|e| EpisodeMsg {
-                        node: e.node,
-                        start: e.start,
-                        end: e.end,
-                        duration: e.duration,
-                        direction: e.direction,
-                    })
-                    .collect(),
-            };
-            self.out.put(Topic::Events, encode(&ev));
-        }
-        for b in plant.closed_blocks() {
-            let m = b.sums.metrics(
-                plant.cells(),
-                plant.discretisation().dt,
-                plant.params().body.area,
-                plant.block_length(),
-            );
-            let msg = MetricsMsg {
-                v: PROTOCOL_VERSION,
-                step: n,
-                block: b.index,
-                steady: b.steady,
-                start: m.start,
-                end: m.end,
-                values: m.values(),
-            };
-            if msg.values.get(Metric::Velocity).is_some() && msg.values.get(Metric::Power).is_some()
-            {
-                self.out.put(Topic::Metrics, encode(&msg));
-            }
-        }
-    }
-}
-
-impl<O: Outbox> Observer for Publisher<'_, O> {
-    fn stepped(&mut self, s: &Stepped<'_>) {
-        let n = s.step;
-        self.publish_step_outputs(s.plant);
-        self.publish_state(s.plant, s.last_step);
-        if n.is_multiple_of(64) {
-            self.bar.set_position(n + 1);
-        }
-        if self.last_status.elapsed() >= STATUS_EVERY {
-            publish_status(
-                self.out,
-                self.id,
-                (
-                    ProcessState::Running,
-                    &format!("step {} of {}", n + 1, s.last_step),
-                    n + 1,
-                ),
-                rejected(&self.admission.borrow(), self.inbox),
-                None,
-            );
-            self.last_status = Instant::now();
-        }
-        let ended_by_task = s.task.task.end_run && s.last_step == n + 1;
-        if let Some(outcome) = s
-            .task
-            .decided()
-            .filter(|_| ended_by_task && !self.announced)
-        {
-            eprintln!(
-                "crawler-plant: task {} at step {}; the run ends there",
-                outcome.as_str(),
-                n + 1
-            );
-            self.announced = true;
-        }
-    }
-}
-
-/// What `plant` applied over its last communication step, as the protocol says it: the wave it
-/// is driven by, or its muscle-force field (N, one value per cell); `None` before any actuation
-/// (the first state of a run).
-pub fn applied(plant: &Plant) -> Option<Applied> {
-    match plant.drive() {
-        Drive::Idle => None,
-        Drive::Wave(w) => Some(Applied {
-            wave: Some(WaveMsg {
-                f0: w.f0,
-                k: w.k,
-                omega: w.omega,
-                phase: w.phase,
-            }),
-            field: None,
-        }),
-        Drive::Field => Some(Applied {
-            wave: None,
-            field: Some(plant.field().to_vec()),
-        }),
-    }
 }
