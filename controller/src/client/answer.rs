@@ -9,7 +9,7 @@ use crawler_protocol::{
 };
 
 use super::predictions::{insight_prediction, predictions};
-use super::summary::FinalSummary;
+use super::summary::{FinalSummary, HandOver};
 use crawler_physics::execution::{Actuation, Observation};
 use crawler_policies::{Context, Policy};
 
@@ -105,14 +105,23 @@ impl<'a> Responder<'a> {
         (actuation, prediction)
     }
 
-    /// The end of the run: the last wave's predictions against the plant's report.
-    pub fn summary(self, plant: Option<FinalReport>) -> FinalSummary {
+    /// The end of the run: the last wave's predictions against the plant's report;
+    /// `first_step`: the first step this controller answered; `handed_over`: the controller
+    /// that took the run over from this one.
+    pub fn summary(
+        self,
+        plant: Option<FinalReport>,
+        first_step: Option<u64>,
+        handed_over: Option<HandOver>,
+    ) -> FinalSummary {
         FinalSummary {
             policy: self.policy.name().to_string(),
             wave: self.last_wave.map(wave_msg),
             plant,
             predictions: self.last_predictions,
             steps: self.answered,
+            first_step,
+            handed_over,
         }
     }
 }

@@ -1,9 +1,15 @@
 //! `crawler-controller run`: a controller of a co-simulation run over zenoh.
 //!
-//! The controller queries the plant's [`ModelInfo`] (retrying until the plant exists, so either
-//! process may start first), builds its policy for that plant, declares its liveliness token
-//! (which is how it joins the run) and then answers every `State(n)` with `Actuation(n)`. It also
-//! publishes the models' predictions for the wave it applies, for the recorder.
+//! The controller asks the plant for its [`ModelInfo`] with a fresh challenge (retrying until
+//! the plant exists, so either process may start first), and believes only the sealed answer
+//! that echoes it: that answer names the plant (its process id) and the run instance, which every
+//! message it takes from then on must carry. It builds its policy for that plant, declares its
+//! liveliness token and asks to join with a sealed request (again every 500 ms until the plant's
+//! states are addressed to it): to join a run without a controller, or with `--take-over` to take
+//! a run over at a step boundary. Then it answers every `State(n)` addressed to it with
+//! `Actuation(n)`, each step once (a resent state gets the same answer again, [`watch`]), and
+//! publishes the models' predictions for the wave it applies, for the recorder. A state addressed
+//! to another controller after its own ends its part of the run (handed over).
 
 mod answer;
 mod inbox;
@@ -11,30 +17,47 @@ mod predictions;
 mod summary;
 pub mod watch;
 
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::Receiver;
-use zenoh::qos::CongestionControl;
-use zenoh::Wait;
 
 use crawler_cli::Exit;
 use crawler_physics::scenario::Scenario;
 use crawler_protocol::{
-    decode, encode, ModelInfo, ProcessState, Rejections, Role, RunKeys, RunLimits, State, Status,
-    PROTOCOL_VERSION,
+    decode, encode, Actuation as ActuationMsg, Join, ModelInfo, ProcessId, ProcessState,
+    Rejections, Role, RunKeys, RunLimits, State, Status, PROTOCOL_VERSION,
 };
-use crawler_transport::gate::{self, Gate, Refused};
-use crawler_transport::{Credential, Network, Seal};
+use crawler_transport::gate::RunInstance;
+use crawler_transport::participant::Congestion;
+use crawler_transport::{Credential, Network, Participant, Seal};
 
 use answer::Responder;
 use crawler_policies::Params;
-use inbox::{Event, Inbox};
-pub use inbox::{STATE_INBOX_BYTES, STATUS_INBOX_BYTES};
+use inbox::Inbox;
+pub use inbox::{state_inbox_bytes, status_inbox_bytes, STATE_INBOX_BYTES, STATUS_INBOX_BYTES};
 pub use predictions::{briefing_of, context_of, paper_tail, predictions};
-pub use summary::FinalSummary;
+pub use summary::{FinalSummary, HandOver};
 pub use watch::{finished_may_follow, last_state_fits, terminal_is_consistent};
 use watch::{Verdict, Watch};
+
+/// How often a controller asks to join until the plant's states are addressed to it.
+const JOIN_EVERY: Duration = Duration::from_millis(500);
+
+/// When a controller takes a run over.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TakeOver {
+    /// At the next step boundary.
+    Next,
+    /// At the first step boundary at or after this simulated time, s.
+    At(f64),
+}
+
+/// The first communication step at or after time `t` (s) of the run that `info` describes (0
+/// for a time before its start).
+pub fn step_at(t: f64, info: &ModelInfo) -> u64 {
+    let steps = (t - info.start_time) / info.step;
+    (steps * (1.0 - 1e-12)).ceil().max(0.0) as u64
+}
 
 /// Options of `crawler-controller run`.
 #[derive(Debug, Clone)]
@@ -49,6 +72,11 @@ pub struct ClientOptions {
     pub network: Network,
     /// How long to wait for the plant, s.
     pub wait_timeout: Duration,
+    /// Take the run over from its controller (`None`: join a run that has none).
+    pub take_over: Option<TakeOver>,
+    /// Fault injection for tests of the plant's resend path: hold the answer to this step for
+    /// this long (the plant resends the state meanwhile).
+    pub stall: Option<(u64, Duration)>,
 }
 
 /// Interrupt signal for the client loop.
@@ -60,6 +88,8 @@ pub struct Interrupt;
 pub enum ClientOutcome {
     /// The plant reached the end of the run.
     Finished(Box<FinalSummary>),
+    /// Another controller took the run over; this one's part ended cleanly.
+    HandedOver(Box<FinalSummary>),
     /// The run ended otherwise.
     Ended {
         /// Why.
@@ -69,19 +99,20 @@ pub enum ClientOutcome {
     },
 }
 
-/// The controller's session and what it checks arriving messages with.
+/// The controller's participant in the run and what it connected with.
 struct Link {
-    session: zenoh::Session,
+    participant: Participant,
     credential: Option<Credential>,
-    seal: Option<Seal>,
     limit: usize,
 }
 
 impl Link {
-    /// Connects to the plant presenting `credential`'s password (if any), reassembling messages
-    /// of at most `limit` bytes; `None` if `give_up` says so first.
+    /// Connects to the plant as controller `id` of run instance `run` presenting `credential`'s
+    /// password (if any), reassembling messages of at most `limit` bytes; `None` if `give_up`
+    /// says so first.
     fn connect(
         network: &crawler_transport::Network,
+        (id, run): (ProcessId, RunInstance),
         credential: Option<Credential>,
         limit: usize,
         give_up: &mut dyn FnMut() -> bool,
@@ -98,15 +129,14 @@ impl Link {
         };
         let seal = credential.as_ref().map(|c| Seal::new(&c.message_key()));
         Ok(Some(Self {
-            session,
+            participant: Participant::new(session, Role::Controller, id, seal, run),
             credential,
-            seal,
             limit,
         }))
     }
 
     fn close(self) {
-        let _ = self.session.close().wait();
+        self.participant.close();
     }
 }
 
@@ -150,8 +180,10 @@ pub fn run(opts: ClientOptions, interrupt: Receiver<Interrupt>) -> anyhow::Resul
     };
     let give_up = waited(deadline);
     let mut ended = None;
+    let run_instance = RunInstance::default();
     let link = Link::connect(
         &opts.network,
+        (id, run_instance.clone()),
         credential,
         RunLimits::before_model(),
         &mut || {
@@ -162,105 +194,67 @@ pub fn run(opts: ClientOptions, interrupt: Receiver<Interrupt>) -> anyhow::Resul
     let Some(link) = link else {
         return Ok(ended.expect("gave up for a reason"));
     };
-    let info = match discover(&link, &keys, &id, &waited(deadline))? {
-        Ok(info) => info,
+    let (info, plant) = match discover(&link, &keys, &waited(deadline))? {
+        Ok(found) => found,
         Err(ended) => {
             link.close();
             return Ok(ended);
         }
     };
     // The run's largest legal message may exceed what the first session reassembles (very
-    // large grids): then reconnect with the run's own limit.
+    // large grids): then reconnect with the run's own limit (same run instance, same plant).
     let limits = RunLimits::new(info.cells as usize);
     let link = if limits.largest() > link.limit {
         let credential = link.credential.clone();
         link.close();
         let give_up = waited(Instant::now() + opts.wait_timeout);
         let mut ended = None;
-        match Link::connect(&opts.network, credential, limits.largest(), &mut || {
-            ended = give_up();
-            ended.is_some()
-        })? {
+        match Link::connect(
+            &opts.network,
+            (id, run_instance),
+            credential,
+            limits.largest(),
+            &mut || {
+                ended = give_up();
+                ended.is_some()
+            },
+        )? {
             Some(link) => link,
             None => return Ok(ended.expect("gave up for a reason")),
         }
     } else {
         link
     };
-    let outcome = serve(&link, &keys, &id, &opts, &interrupt, info);
+    let outcome = serve(&link, &keys, &opts, &interrupt, (info, plant));
     link.close();
     outcome
 }
 
-/// Publishes the controller's status (sealed in an authenticated run).
-fn publish_status(
-    publisher: &zenoh::pubsub::Publisher<'_>,
-    seal: Option<&Seal>,
-    id: &str,
-    (state, message, step): (ProcessState, &str, u64),
-) {
-    let s = Status {
-        v: PROTOCOL_VERSION,
-        role: Role::Controller,
-        id: id.to_string(),
-        state,
-        message: message.into(),
-        step,
-        rejected: Rejections::default(),
-        report: None,
-    };
-    let _ = gate::put(publisher, seal, encode(&s));
-}
-
-/// Waits for the plant's (sealed) model description, retrying until it answers or `give_up`
-/// gives a reason to stop.
+/// Asks the plant for its model description with a fresh challenge until a sealed answer of
+/// this run comes (or `give_up` gives a reason to stop): the description, and the plant's id;
+/// the answer's run instance is learnt.
 fn discover(
     link: &Link,
     keys: &RunKeys,
-    id: &str,
     give_up: &dyn Fn() -> Option<ClientOutcome>,
-) -> anyhow::Result<Result<ModelInfo, ClientOutcome>> {
-    let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
-    let status_pub = link
-        .session
-        .declare_publisher(keys.status(Role::Controller))
-        .congestion_control(CongestionControl::Block)
-        .wait()
-        .map_err(z)?;
-    publish_status(
-        &status_pub,
-        link.seal.as_ref(),
-        id,
-        (
-            ProcessState::Waiting,
-            "waiting for the plant's model description",
-            0,
-        ),
-    );
-    let gate = Gate::new(
-        RunLimits::before_model(),
-        link.seal.clone(),
-        Arc::new(Refused::default()),
-    );
+) -> anyhow::Result<Result<(ModelInfo, ProcessId), ClientOutcome>> {
+    let p = &link.participant;
     loop {
         if let Some(ended) = give_up() {
             return Ok(Err(ended));
         }
-        let replies = link
-            .session
-            .get(keys.model())
-            .timeout(Duration::from_millis(500))
-            .wait()
-            .map_err(z)?;
-        let mut found = None;
-        while let Ok(reply) = replies.recv() {
-            let Ok(sample) = reply.result() else { continue };
-            let Ok(bytes) = gate.admit(sample) else {
-                eprintln!("crawler-controller: ignoring a model description without a valid seal");
-                continue;
-            };
-            match decode::<ModelInfo>(&bytes) {
-                Ok(info) if info.run == keys.run() => found = Some(info),
+        let answer = p.query(
+            &keys.model(),
+            Role::Plant,
+            RunLimits::before_model(),
+            Duration::from_millis(500),
+        )?;
+        if let Some(a) = answer {
+            match decode::<ModelInfo>(&a.bytes) {
+                Ok(info) if info.run == keys.run() => {
+                    p.run().learn(a.header.run);
+                    return Ok(Ok((info, a.header.sender)));
+                }
                 Ok(info) => eprintln!(
                     "crawler-controller: ignoring the model description of another run ({})",
                     info.run
@@ -270,102 +264,130 @@ fn discover(
                 }
             }
         }
-        if let Some(info) = found {
-            return Ok(Ok(info));
-        }
         std::thread::sleep(Duration::from_millis(200));
     }
 }
 
-/// Answers the plant of `info` until the run ends.
+/// Answers the plant `plant` of `info` until the run ends or another controller takes it over.
 fn serve(
     link: &Link,
     keys: &RunKeys,
-    id: &str,
     opts: &ClientOptions,
     interrupt: &Receiver<Interrupt>,
-    info: ModelInfo,
+    (info, plant): (ModelInfo, ProcessId),
 ) -> anyhow::Result<ClientOutcome> {
-    let z = |e: zenoh::Error| anyhow::anyhow!("zenoh: {e}");
-    let session = &link.session;
-    let seal = link.seal.as_ref();
-    let inbox = Inbox::open(session, keys, &RunLimits::new(info.cells as usize), seal)?;
-    let status_pub = session
-        .declare_publisher(keys.status(Role::Controller))
-        .congestion_control(CongestionControl::Block)
-        .wait()
-        .map_err(z)?;
+    let p = &link.participant;
+    let id = p.id();
+    let inbox = Inbox::open(p, keys, &RunLimits::new(info.cells as usize), plant)?;
+    let status_out = p.outlet(&keys.status(Role::Controller), Congestion::Block, false)?;
     let publish_status = |state: ProcessState, message: &str, step: u64| {
-        publish_status(&status_pub, seal, id, (state, message, step));
+        let s = Status {
+            v: PROTOCOL_VERSION,
+            role: Role::Controller,
+            id: id.to_string(),
+            state,
+            message: message.into(),
+            step,
+            rejected: Rejections::default(),
+            report: None,
+        };
+        let _ = status_out.put(encode(&s));
     };
 
     let ctx = context_of(&info, &opts.scenario);
     let policy = crawler_policies::build(&opts.policy, &ctx, &opts.params)?;
     eprintln!(
-        "crawler-controller: plant found ({} cells, L = {} m, H = {} s); policy {}",
+        "crawler-controller: plant {plant} found ({} cells, L = {} m, H = {} s); policy {}",
         info.cells,
         info.length,
         info.step,
         policy.describe()
     );
-    let mut responder = Responder::new(policy, &ctx, id);
+    let mut responder = Responder::new(policy, &ctx, id.as_str());
 
-    let actuation_pub = session
-        .declare_publisher(keys.actuation())
-        .congestion_control(CongestionControl::Block)
-        .express(true)
-        .wait()
-        .map_err(z)?;
+    let actuation_out = p.outlet(&keys.actuation(), Congestion::Block, true)?;
     // Blocking like the actuation: a wave's predictions are sent once, and the recorder gets
     // them through the plant's link, behind its states; a dropping publisher lost them whenever
     // that link was congested for a moment, and with them the models' lines for the whole run.
-    let prediction_pub = session
-        .declare_publisher(keys.prediction())
-        .congestion_control(CongestionControl::Block)
-        .wait()
-        .map_err(z)?;
-    // Joining: the plant takes the first controller whose token it sees.
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive(Role::Controller, id))
-        .wait()
-        .map_err(z)?;
-    publish_status(
-        ProcessState::Running,
-        &format!("policy {}", responder.policy()),
-        0,
-    );
+    let prediction_out = p.outlet(&keys.prediction(), Congestion::Block, false)?;
+    let join_out = p.outlet(&keys.join(), Congestion::Block, true)?;
+    // The token says only when this process goes away; joining is the sealed request below.
+    let _token = p.token(keys)?;
+    let take_over = opts.take_over.map(|t| match t {
+        TakeOver::Next => 0,
+        TakeOver::At(time) => step_at(time, &info),
+    });
+    let join = encode(&Join {
+        v: PROTOCOL_VERSION,
+        controller: id.to_string(),
+        policy: responder.policy().to_string(),
+        take_over,
+    });
+    join_out.put(join.clone())?;
+    let mut next_join = Instant::now() + JOIN_EVERY;
+    let asked = match take_over {
+        None => format!("policy {}; asked to join", responder.policy()),
+        Some(0) => format!(
+            "policy {}; asked to take the run over at the next step",
+            responder.policy()
+        ),
+        Some(n) => format!(
+            "policy {}; asked to take the run over at step {n}",
+            responder.policy()
+        ),
+    };
+    eprintln!("crawler-controller: {asked}");
+    publish_status(ProcessState::Running, &asked, 0);
 
-    let mut watch = Watch::new(id, &info);
+    let mut watch = Watch::new(id.as_str(), &info, plant.as_str());
+    // the answer to the latest step, sent again if the plant resends its state
+    let mut answer: Option<ActuationMsg> = None;
+    let mut first_step = None;
+    let mut stall = opts.stall;
     let deadline_idle = opts.wait_timeout.max(Duration::from_secs(60));
     let mut last_seen = Instant::now();
-    let plant_report = loop {
+    let outcome = loop {
         let verdict = crossbeam_channel::select! {
             recv(interrupt) -> _ => {
                 publish_status(ProcessState::Stopped, "interrupted", responder.answered());
                 return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit: Exit::Interrupted });
             }
-            recv(inbox.events) -> ev => match ev {
-                Ok(Event::Up(pid)) => watch.plant_up(&pid),
-                Ok(Event::Down(pid)) => watch.plant_down(&pid),
+            recv(inbox.gone) -> pid => match pid {
+                Ok(pid) => watch.plant_down(pid.as_str()),
                 Err(_) => Verdict::Wait,
             },
             recv(inbox.statuses) -> st => match st {
                 Ok(st) => watch.status(st.split().0, responder.answered()),
                 Err(_) => Verdict::Wait,
             },
-            recv(inbox.states) -> bytes => match bytes.map(|b| decode::<State>(b.get())) {
+            recv(inbox.states) -> m => match m.map(|m| decode::<State>(&m.get().bytes)) {
                 Ok(Ok(state)) => {
-                    if state.controller == id {
+                    // a controller waiting to take over waits as long as the run goes on
+                    if state.controller == id.as_str() || take_over.is_some() {
                         last_seen = Instant::now();
                     }
                     let verdict = watch.state(&state);
-                    if verdict == Verdict::Answer {
-                        let (actuation, prediction) = responder.respond(&state);
-                        gate::put(&actuation_pub, seal, encode(&actuation)).map_err(z)?;
-                        if let Some(p) = prediction {
-                            let _ = gate::put(&prediction_pub, seal, encode(&p));
+                    match verdict {
+                        Verdict::Answer => {
+                            if let Some((step, hold)) = stall.filter(|(s, _)| *s == state.step) {
+                                eprintln!("crawler-controller: holding the answer to step {step} for {} ms (--stall)", hold.as_millis());
+                                std::thread::sleep(hold);
+                                stall = None;
+                            }
+                            first_step.get_or_insert(state.step);
+                            let (actuation, prediction) = responder.respond(&state);
+                            actuation_out.put(encode(&actuation))?;
+                            if let Some(pr) = prediction {
+                                let _ = prediction_out.put(encode(&pr));
+                            }
+                            answer = Some(actuation);
                         }
+                        Verdict::Resend => {
+                            if let Some(a) = &answer {
+                                actuation_out.put(encode(a))?;
+                            }
+                        }
+                        _ => {}
                     }
                     verdict
                 }
@@ -378,7 +400,7 @@ fn serve(
                 }
                 Err(_) => Verdict::Wait,
             },
-            default(Duration::from_millis(500)) => {
+            default(JOIN_EVERY) => {
                 if last_seen.elapsed() > deadline_idle {
                     let reason = match watch.other_controller() {
                         Some(c) => format!("run {} already has controller {c}", keys.run()),
@@ -389,12 +411,18 @@ fn serve(
                 Verdict::Wait
             },
         };
+        // until the plant's states are addressed to it, a controller asks again
+        if watch.latest_step().is_none() && Instant::now() >= next_join {
+            join_out.put(join.clone())?;
+            next_join = Instant::now() + JOIN_EVERY;
+        }
         for note in watch.take_notes() {
             eprintln!("crawler-controller: {note}");
         }
         match verdict {
-            Verdict::Wait | Verdict::Answer => {}
-            Verdict::Finished(report) => break report.map(|r| *r),
+            Verdict::Wait | Verdict::Answer | Verdict::Resend => {}
+            Verdict::Finished(report) => break Ok(report.map(|r| *r)),
+            Verdict::HandedOver { to, step } => break Err(HandOver { to, step }),
             Verdict::Ended(reason) => {
                 publish_status(ProcessState::Stopped, &reason, responder.answered());
                 return Ok(ClientOutcome::Ended {
@@ -411,20 +439,33 @@ fn serve(
         }
     };
     let answered = responder.answered();
-    publish_status(
-        ProcessState::Finished,
-        &format!("answered {answered} steps"),
-        answered,
-    );
-    let refusals = inbox.refusals();
+    let said = match &outcome {
+        Ok(_) => format!("answered {answered} steps"),
+        Err(h) => format!(
+            "answered {answered} steps; handed the run over to {} at step {}",
+            h.to, h.step
+        ),
+    };
+    publish_status(ProcessState::Finished, &said, answered);
+    if watch.resent() > 0 {
+        eprintln!(
+            "crawler-controller: the plant resent {} states of steps already answered; each got the same answer again",
+            watch.resent()
+        );
+    }
+    let refusals = inbox::refusals(p);
     if watch.ignored() > 0 || refusals.is_some() {
         eprintln!(
-            "crawler-controller: ignored {} messages (invalid, or not from this run's plant); refused at arrival: {}",
+            "crawler-controller: ignored {} messages (invalid, stale, or not for this controller); refused at arrival: {}",
             watch.ignored(),
             refusals.as_deref().unwrap_or("none")
         );
     }
-    Ok(ClientOutcome::Finished(Box::new(
-        responder.summary(plant_report),
-    )))
+    Ok(match outcome {
+        Ok(report) => ClientOutcome::Finished(Box::new(responder.summary(report, first_step, None))),
+        Err(h) => {
+            eprintln!("crawler-controller: {said}");
+            ClientOutcome::HandedOver(Box::new(responder.summary(None, first_step, Some(h))))
+        }
+    })
 }

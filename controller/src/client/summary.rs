@@ -19,6 +19,21 @@ pub struct FinalSummary {
     pub predictions: Vec<ModelPrediction>,
     /// Steps answered.
     pub steps: u64,
+    /// The first step this controller answered (a controller that took a run over starts
+    /// later than the run).
+    pub first_step: Option<u64>,
+    /// The controller this one handed the run over to, and at which step (its part of the run
+    /// ended there; `plant` is then absent).
+    pub handed_over: Option<HandOver>,
+}
+
+/// A hand-over of the run to another controller.
+#[derive(Debug, Clone, Serialize)]
+pub struct HandOver {
+    /// The controller that took the run over.
+    pub to: String,
+    /// Its first step.
+    pub step: u64,
 }
 
 impl FinalSummary {
@@ -26,6 +41,17 @@ impl FinalSummary {
     /// Errors are relative, except for shares (the stuck fraction, often near zero), whose
     /// difference is given in absolute terms; a model without a value says why below the table.
     pub fn table(&self) -> String {
+        if let Some(h) = &self.handed_over {
+            return format!(
+                "handed the run over to controller {} at step {} after answering {} steps{} (policy {})\n",
+                h.to,
+                h.step,
+                self.steps,
+                self.first_step
+                    .map_or_else(String::new, |f| format!(" from step {f}")),
+                self.policy
+            );
+        }
         let steady = self.plant.as_ref().map(|p| p.window.steady);
         let mut out = match steady {
             Some(false) => "predicted (steady state of the last wave) against simulated (run averages: \

@@ -1,12 +1,18 @@
 //! Which of the plant's messages the controller believes, and when the run is over: a state
 //! machine with no network in it (the client feeds it what arrives and acts on its verdicts),
-//! so that the rules against forged and reordered messages are tested without processes.
+//! so that the rules against reordered and inconsistent messages are tested without processes.
 //!
-//! Believed: statuses from the process whose liveliness token was seen first for the plant's
-//! role (a stray publisher cannot end the run), a `finished` status only at the step of the
-//! plant's last state to this controller, and states addressed to this controller with a field
-//! of the model's size. A `finished` status may overtake the last state (they travel on
+//! Believed: statuses of the plant that answered the controller's challenge (the arrival gate
+//! has checked their seal, run instance and order already), a `finished` status only at the step
+//! of the plant's last state to this controller, and states addressed to this controller with a
+//! field of the model's size. A `finished` status may overtake the last state (they travel on
 //! different keys): it is held until that state comes, and dropped once the run goes past it.
+//!
+//! Exactly once: each step is answered once. A state for the step just answered (the plant
+//! resends a state while no answer has reached it) gets that answer again, never a new call of
+//! the policy; a state for an earlier step is ignored, and the step never moves backwards. A
+//! state addressed to another controller after this one answered is the run's hand-over: this
+//! controller's part ends there.
 
 use std::collections::BTreeMap;
 
@@ -20,8 +26,17 @@ const PENDING_FINISHED_MAX: usize = 8;
 pub enum Verdict {
     /// Nothing now (the message was held, ignored, or changed only what the watch knows).
     Wait,
-    /// Answer this state with an actuation.
+    /// Answer this state with an actuation (a step not answered before).
     Answer,
+    /// Send the answer already given to this state's step again (a resent state).
+    Resend,
+    /// Another controller controls the run from `step` on: this controller's part is over.
+    HandedOver {
+        /// The controller the states are now addressed to.
+        to: String,
+        /// Its first step.
+        step: u64,
+    },
     /// The run is over: the plant's final report, if its status carried one.
     Finished(Option<Box<FinalReport>>),
     /// The plant failed or stopped the run; why, for the user.
@@ -36,8 +51,8 @@ pub struct Watch {
     /// This controller's id (states for other ids are not ours).
     id: String,
     info: ModelInfo,
-    /// The process whose liveliness token was seen first for the plant's role.
-    plant_id: Option<String>,
+    /// The plant: the process that answered this controller's challenge.
+    plant_id: String,
     /// The step of the plant's last state (`last: true`) to us: the model's `last_step` unless
     /// the plant ended the run early (task mode).
     last_state_step: Option<u64>,
@@ -47,21 +62,25 @@ pub struct Watch {
     /// A controller that states were addressed to instead of us (who has the run).
     other_controller: Option<String>,
     ignored: u64,
+    resent: u64,
+    stale: u64,
     notes: Vec<String>,
 }
 
 impl Watch {
-    /// The watch of controller `id` over the run that `info` describes.
-    pub fn new(id: &str, info: &ModelInfo) -> Self {
+    /// The watch of controller `id` over the run that `info` describes, whose plant is `plant`.
+    pub fn new(id: &str, info: &ModelInfo, plant: &str) -> Self {
         Self {
             id: id.to_string(),
             info: info.clone(),
-            plant_id: None,
+            plant_id: plant.to_string(),
             last_state_step: None,
             latest_step: None,
             pending_finished: BTreeMap::new(),
             other_controller: None,
             ignored: 0,
+            resent: 0,
+            stale: 0,
             notes: Vec::new(),
         }
     }
@@ -86,28 +105,38 @@ impl Watch {
         std::mem::take(&mut self.notes)
     }
 
-    /// A liveliness token of the plant's role appeared: the first one is the plant.
-    pub fn plant_up(&mut self, pid: &str) -> Verdict {
-        if self.plant_id.is_none() {
-            self.plant_id = Some(pid.to_string());
-        }
-        Verdict::Wait
-    }
-
-    /// A liveliness token of the plant's role went away.
+    /// A process of the plant's role went away.
     pub fn plant_down(&mut self, pid: &str) -> Verdict {
-        if self.plant_id.as_deref() == Some(pid) {
+        if self.plant_id == pid {
             Verdict::PlantLeft
         } else {
             Verdict::Wait
         }
     }
 
+    /// The step of the latest state answered.
+    pub fn latest_step(&self) -> Option<u64> {
+        self.latest_step
+    }
+
     /// A status on the plant's key; `answered`: states answered so far.
     pub fn status(&mut self, st: Status, answered: u64) -> Verdict {
-        if self.plant_id.as_deref() != Some(st.id.as_str()) || st.role != Role::Plant {
+        if self.plant_id != st.id || st.role != Role::Plant {
             self.ignored += 1;
             return Verdict::Wait;
+        }
+        if self.latest_step.is_none()
+            && self.last_state_step.is_none()
+            && st.state.is_terminal()
+            && st.step > 0
+            && st.step <= self.info.last_step
+        {
+            // the run ended before this controller answered anything (a take-over that did not
+            // happen in time)
+            return Verdict::Ended(format!(
+                "the run was {} at step {} before this controller answered any state: {}",
+                st.state, st.step, st.message
+            ));
         }
         if st.state == ProcessState::Finished
             && self.last_state_step.is_none()
@@ -141,15 +170,36 @@ impl Watch {
     /// A state on the run's state key.
     pub fn state(&mut self, state: &State) -> Verdict {
         if state.controller != self.id {
-            if !state.controller.is_empty() {
-                self.other_controller = Some(state.controller.clone());
+            if state.controller.is_empty() {
+                self.ignored += 1;
+                return Verdict::Wait; // before the plant took a controller
             }
+            if self.latest_step.is_some_and(|l| state.step > l) {
+                // this controller answered before: the run was handed over
+                return Verdict::HandedOver {
+                    to: state.controller.clone(),
+                    step: state.step,
+                };
+            }
+            self.other_controller = Some(state.controller.clone());
             self.ignored += 1;
-            return Verdict::Wait; // for another controller, or before we joined
+            return Verdict::Wait; // another controller's, before we joined
         }
         if state.u.len() as u64 != self.info.cells {
             self.ignored += 1;
             return Verdict::Wait;
+        }
+        if let Some(l) = self.latest_step {
+            if state.step < l {
+                // never backwards
+                self.ignored += 1;
+                self.stale += 1;
+                return Verdict::Wait;
+            }
+            if state.step == l && !state.last {
+                self.resent += 1;
+                return Verdict::Resend;
+            }
         }
         if state.last {
             if self.last_state_step.is_none()
@@ -159,7 +209,7 @@ impl Watch {
                 if let Some(st) = self.pending_finished.remove(&state.step) {
                     return Verdict::Finished(st.report.map(Box::new));
                 }
-            } else {
+            } else if self.last_state_step != Some(state.step) {
                 self.ignored += 1;
             }
             return Verdict::Wait; // the plant's finished status ends the run
@@ -178,6 +228,17 @@ impl Watch {
             ));
         }
         Verdict::Answer
+    }
+
+    /// States of steps already answered that came again (the plant resent them): answered
+    /// again with the same actuation.
+    pub fn resent(&self) -> u64 {
+        self.resent
+    }
+
+    /// States of steps before the latest answered: ignored.
+    pub fn stale(&self) -> u64 {
+        self.stale
     }
 }
 
@@ -339,13 +400,9 @@ mod tests {
         }
     }
 
-    /// A watch of controller "c" over a 2-cell run to step 8000 whose plant "p" is up.
+    /// A watch of controller "c" over a 2-cell run to step 8000 whose plant is "p".
     fn watching() -> Watch {
-        let mut w = Watch::new("c", &info(8000));
-        assert_eq!(w.plant_up("p"), Verdict::Wait);
-        // a second process of the plant's role does not replace the first
-        assert_eq!(w.plant_up("q"), Verdict::Wait);
-        w
+        Watch::new("c", &info(8000), "p")
     }
 
     #[test]
@@ -380,10 +437,54 @@ mod tests {
         forged.role = Role::Controller;
         assert_eq!(w.status(forged, 8000), Verdict::Wait);
         assert_eq!(w.ignored(), 2);
-        // before any plant token was seen, nobody is the plant
-        let mut blind = Watch::new("c", &info(8000));
-        assert_eq!(blind.status(status("failed", 10), 5), Verdict::Wait);
-        assert_eq!(blind.ignored(), 1);
+    }
+
+    #[test]
+    fn each_step_is_answered_once_and_a_resent_state_gets_the_same_answer() {
+        let mut w = watching();
+        assert_eq!(w.state(&state("c", 0, 2, false)), Verdict::Answer);
+        assert_eq!(w.state(&state("c", 1, 2, false)), Verdict::Answer);
+        // the plant resent state 1 (no answer reached it in time): the answer again, twice
+        assert_eq!(w.state(&state("c", 1, 2, false)), Verdict::Resend);
+        assert_eq!(w.state(&state("c", 1, 2, false)), Verdict::Resend);
+        assert_eq!(w.state(&state("c", 2, 2, false)), Verdict::Answer);
+        // an earlier step is never answered again, and the step does not move back
+        assert_eq!(w.state(&state("c", 0, 2, false)), Verdict::Wait);
+        assert_eq!(w.state(&state("c", 1, 2, false)), Verdict::Wait);
+        assert_eq!(w.latest_step(), Some(2));
+        assert_eq!(w.state(&state("c", 2, 2, false)), Verdict::Resend);
+        assert_eq!((w.resent(), w.stale()), (3, 2));
+        assert_eq!(w.state(&state("c", 3, 2, false)), Verdict::Answer);
+    }
+
+    #[test]
+    fn a_state_for_another_controller_after_this_ones_turn_is_the_hand_over() {
+        let mut w = watching();
+        for n in 0..10 {
+            assert_eq!(w.state(&state("c", n, 2, false)), Verdict::Answer);
+        }
+        assert_eq!(
+            w.state(&state("b", 10, 2, false)),
+            Verdict::HandedOver {
+                to: "b".into(),
+                step: 10
+            }
+        );
+        // a controller waiting to take over sees the other's states and waits, then answers
+        // from its first step on
+        let mut b = Watch::new("b", &info(8000), "p");
+        for n in 0..10 {
+            assert_eq!(b.state(&state("c", n, 2, false)), Verdict::Wait);
+        }
+        assert_eq!(b.other_controller(), Some("c"));
+        assert_eq!(b.state(&state("b", 10, 2, false)), Verdict::Answer);
+        // ... and if the run ends before its turn, it is told so
+        let mut late = Watch::new("d", &info(8000), "p");
+        assert_eq!(late.state(&state("c", 7999, 2, false)), Verdict::Wait);
+        match late.status(status("finished", 8000), 0) {
+            Verdict::Ended(why) => assert!(why.contains("before this controller answered"), "{why}"),
+            v => panic!("{v:?}"),
+        }
     }
 
     #[test]
@@ -463,6 +564,9 @@ mod tests {
         let mut w = watching();
         // a failure before anything happened is a plant that refused to start: not ours to end
         assert_eq!(w.status(status("failed", 0), 0), Verdict::Wait);
+        for n in 0..12 {
+            w.state(&state("c", n, 2, false));
+        }
         let mut failed = status("failed", 12);
         failed.message = "NaN in the field".into();
         assert_eq!(
