@@ -11,13 +11,16 @@ use crossbeam_channel::{bounded, Sender};
 use zenoh::Wait;
 
 use crawler_cli::Exit;
-use crawler_protocol::{decode, Environment, Message, ModelInfo, Role, RunKeys, RunLimits};
+use crawler_protocol::{
+    decode, Environment, Message, ModelInfo, ProcessId, Role, RunKeys, RunLimits, RunNonce,
+};
 use crawler_recorder::output::Output;
 use crawler_recorder::viewer::{self, Link, Viewer};
 use crawler_recorder::{Incoming, Recorder, RecorderOptions};
 use crawler_transport::budget::{ByteBudget, Charged};
-use crawler_transport::gate::{Gate, Refused};
-use crawler_transport::{Credential, Network, Seal};
+use crawler_transport::gate::{Accept, Gate, Refused, RunInstance, Senders};
+use crawler_transport::participant::Admitted;
+use crawler_transport::{Credential, Network, Participant, Seal};
 
 /// Byte budget of the states in the inbox between the zenoh callbacks and the writer. The three
 /// budgets below (44 MiB together) are what a writer that stalls under a flood (a slow disk's
@@ -136,49 +139,58 @@ struct Sink {
     dropped: Arc<AtomicU64>,
 }
 
+impl Sink {
+    /// Queues `msg` (`len` payload bytes) unless its budget or its queue is full (then drops
+    /// and counts it): never blocks the publisher.
+    fn offer(&self, msg: Incoming, len: usize) -> bool {
+        let (budget, tx) = match msg {
+            Incoming::State(_) => (&self.states, &self.tx),
+            Incoming::Status(_) => (&self.statuses, &self.status_tx),
+            _ => (&self.others, &self.tx),
+        };
+        let queued = budget
+            .charge(msg, len)
+            .is_some_and(|m| tx.try_send((Instant::now(), m)).is_ok());
+        if !queued {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+        queued
+    }
+}
+
+/// Subscribes to `key` through the participant: its arrival gate (size, seal, run instance,
+/// sender, each message once) before the inbox.
 fn subscribe(
-    session: &zenoh::Session,
+    participant: &Participant,
     key: String,
     gate: Gate,
     sink: Sink,
     wrap: fn(Vec<u8>) -> Incoming,
 ) -> anyhow::Result<zenoh::pubsub::Subscriber<()>> {
-    session
-        .declare_subscriber(key)
-        .callback(move |sample| {
-            // Oversized and unsealed payloads are counted by the gate. Never block the
-            // publisher: if the writer is behind (inbox full in messages or bytes), drop and count.
-            let Ok(bytes) = gate.admit(&sample) else {
-                return;
-            };
-            let len = bytes.len();
-            let msg = wrap(bytes);
-            let (budget, tx) = match msg {
-                Incoming::State(_) => (&sink.states, &sink.tx),
-                Incoming::Status(_) => (&sink.statuses, &sink.status_tx),
-                _ => (&sink.others, &sink.tx),
-            };
-            let queued = budget
-                .charge(msg, len)
-                .is_some_and(|m| tx.try_send((Instant::now(), m)).is_ok());
-            if !queued {
-                sink.dropped.fetch_add(1, Ordering::Relaxed);
-            }
-        })
-        .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))
+    participant.subscribe(&key, gate, move |m: Admitted| {
+        let len = m.bytes.len();
+        sink.offer(wrap(m.bytes), len)
+    })
 }
 
-/// The recorder's session and its subscriptions.
+/// The recorder's participant in the run and its subscriptions.
 struct Connection {
-    session: zenoh::Session,
+    participant: Participant,
     _subs: Vec<zenoh::pubsub::Subscriber<()>>,
     _plants: zenoh::pubsub::Subscriber<()>,
     _token: zenoh::liveliness::LivelinessToken,
     /// The gate of the state key (its limit is tightened once the run's size is known).
     state_gate: Gate,
-    seal: Option<Seal>,
     limit: usize,
+}
+
+/// Who the recorder believes: the run instance and the plant that answered its challenge
+/// (learnt once; shared by the connections it opens), and what it refused at arrival.
+#[derive(Clone, Default)]
+struct Believed {
+    run: RunInstance,
+    plant: Senders,
+    refused: Arc<Refused>,
 }
 
 impl Connection {
@@ -188,8 +200,8 @@ impl Connection {
         network: &Network,
         credential: &mut Option<Credential>,
         limit: usize,
-        (sink, refused): (&Sink, &Arc<Refused>),
-        (plant_tx, id): (Sender<Incoming>, &str),
+        (sink, believed): (&Sink, &Believed),
+        (plant_tx, id): (Sender<Incoming>, ProcessId),
         give_up: &mut dyn FnMut() -> bool,
     ) -> anyhow::Result<Option<Self>> {
         let keys = RunKeys::new(&network.run_id)?;
@@ -205,129 +217,104 @@ impl Connection {
         };
         *credential = used;
         let seal = credential.as_ref().map(|c| Seal::new(&c.message_key()));
-        let gate = |limit: usize| Gate::new(limit, seal.clone(), refused.clone());
-        let state_gate = gate(limit);
+        let participant = Participant::new(session, Role::Bridge, id, seal, believed.run.clone())
+            .counting_into(believed.refused.clone());
+        let from_plant = || Accept::Ids(Role::Plant, believed.plant.clone());
+        let state_gate = participant.gate(limit, from_plant());
         let subs = vec![
             subscribe(
-                &session,
+                &participant,
                 keys.state(),
                 state_gate.clone(),
                 sink.clone(),
                 Incoming::State,
             )?,
             subscribe(
-                &session,
+                &participant,
                 keys.events(),
-                gate(limit),
+                participant.gate(limit, from_plant()),
                 sink.clone(),
                 Incoming::Events,
             )?,
             subscribe(
-                &session,
+                &participant,
                 keys.metrics(),
-                gate(RunLimits::metrics()),
+                participant.gate(RunLimits::metrics(), from_plant()),
                 sink.clone(),
                 Incoming::Metrics,
             )?,
             subscribe(
-                &session,
+                &participant,
                 keys.prediction(),
-                gate(RunLimits::text_message()),
+                participant.gate(RunLimits::text_message(), Accept::Role(Role::Controller)),
                 sink.clone(),
                 Incoming::Prediction,
             )?,
             subscribe(
-                &session,
+                &participant,
                 keys.status_all(),
-                gate(RunLimits::text_message()),
+                participant.gate(RunLimits::text_message(), Accept::RoleOfKey),
                 sink.clone(),
                 Incoming::Status,
             )?,
         ];
-        // Plant liveliness goes through its own unbounded channel: it must never be dropped.
-        let plant_keys = keys.clone();
-        let plants = session
-            .liveliness()
-            .declare_subscriber(keys.alive_all(Role::Plant))
-            .history(true)
-            .callback(move |sample| {
-                if let Some(pid) =
-                    plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
-                {
-                    let _ = plant_tx.send(match sample.kind() {
-                        zenoh::sample::SampleKind::Put => Incoming::PlantUp(pid.to_string()),
-                        zenoh::sample::SampleKind::Delete => Incoming::PlantDown(pid.to_string()),
-                    });
-                }
-            })
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
-        let token = session
-            .liveliness()
-            .declare_token(keys.alive(Role::Bridge, id))
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+        // The plant's departure goes through its own unbounded channel: it must never be
+        // dropped. (Which process is the plant is learnt from its sealed answer, not from
+        // liveliness.)
+        let plants = participant.departures(&keys, Role::Plant, move |pid| {
+            let _ = plant_tx.send(Incoming::PlantDown(pid.to_string()));
+        })?;
+        let token = participant.token(&keys)?;
         Ok(Some(Self {
-            session,
+            participant,
             _subs: subs,
             _plants: plants,
             _token: token,
             state_gate,
-            seal,
             limit,
         }))
     }
 
-    /// The plant's model description, if it answers (sealed) within 200 ms.
-    fn query_model(&self, keys: &RunKeys, refused: &Arc<Refused>) -> Option<ModelInfo> {
-        self.query(keys.model(), refused, |info: &ModelInfo| {
-            info.run == keys.run()
-        })
+    /// The plant's model description, if it answers (sealed, echoing a fresh challenge) within
+    /// 200 ms: with the plant's id and its run instance.
+    fn query_model(&self, keys: &RunKeys) -> Option<(ModelInfo, ProcessId, RunNonce)> {
+        let a = self
+            .participant
+            .query(
+                &keys.model(),
+                Role::Plant,
+                RunLimits::before_model(),
+                Duration::from_millis(200),
+            )
+            .ok()??;
+        let info = decode::<ModelInfo>(&a.bytes).ok()?;
+        (info.run == keys.run()).then_some((info, a.header.sender, a.header.run))
     }
 
-    fn query_environment(&self, keys: &RunKeys, refused: &Arc<Refused>) -> Option<Environment> {
-        self.query(keys.environment(), refused, |e: &Environment| {
-            e.run == keys.run()
-        })
+    fn query_environment(&self, keys: &RunKeys) -> Option<Environment> {
+        self.query(keys.environment(), |e: &Environment| e.run == keys.run())
     }
 
     /// The plant's answer on the queryable `key`, decoded, validated and of this run (`ours`).
-    fn query<M: Message>(
-        &self,
-        key: String,
-        refused: &Arc<Refused>,
-        ours: impl Fn(&M) -> bool,
-    ) -> Option<M> {
-        let replies = self
-            .session
-            .get(key)
-            .timeout(Duration::from_millis(200))
-            .wait()
-            .ok()?;
-        let gate = Gate::new(
-            RunLimits::before_model(),
-            self.seal.clone(),
-            refused.clone(),
-        );
-        let mut found = None;
-        while let Ok(reply) = replies.recv() {
-            if let Ok(sample) = reply.result() {
-                if let Ok(bytes) = gate.admit(sample) {
-                    if let Ok(m) = decode::<M>(&bytes) {
-                        if ours(&m) {
-                            found = Some(m);
-                        }
-                    }
-                }
-            }
-        }
-        found
+    fn query<M: Message>(&self, key: String, ours: impl Fn(&M) -> bool) -> Option<M> {
+        let a = self
+            .participant
+            .query(
+                &key,
+                Role::Plant,
+                RunLimits::before_model(),
+                Duration::from_millis(200),
+            )
+            .ok()??;
+        decode::<M>(&a.bytes).ok().filter(|m| ours(m))
     }
 
     fn close(self) {
-        let Self { session, _subs, .. } = self;
+        let Self {
+            participant, _subs, ..
+        } = self;
         drop(_subs);
-        let _ = session.close().wait();
+        participant.close();
     }
 }
 
@@ -377,6 +364,12 @@ fn close(
         }
     };
     Ok(Closed { recorded, viewer })
+}
+
+/// Everything refused at arrival but for its size (counted apart): no valid envelope or seal,
+/// another run instance, a sender that may not send on the key, a replay.
+fn arrival_refusals(r: &Refused) -> u64 {
+    r.unsealed() + r.other_run() + r.foreign() + r.replayed()
 }
 
 fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
@@ -489,7 +482,8 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         others: ByteBudget::new(OTHER_BYTES),
         dropped: dropped.clone(),
     };
-    let refused = Arc::new(Refused::default());
+    let believed = Believed::default();
+    let refused = believed.refused.clone();
     let (plant_tx, plant_rx) = crossbeam_channel::unbounded::<Incoming>();
     let id = crawler_transport::process_id();
     eprintln!(
@@ -510,8 +504,8 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         &network,
         &mut credential,
         RunLimits::before_model(),
-        (&sink, &refused),
-        (plant_tx.clone(), &id),
+        (&sink, &believed),
+        (plant_tx.clone(), id),
         &mut give_up,
     )?
     else {
@@ -587,10 +581,14 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
         if recorder.finished() && rx.is_empty() && status_rx.is_empty() {
             break false;
         }
-        recorder.refused_at_arrival(refused.oversize(), refused.unsealed());
+        recorder.refused_at_arrival(refused.oversize(), arrival_refusals(&refused));
         if !model_known && Instant::now() >= next_query {
             next_query = Instant::now() + Duration::from_millis(200);
-            if let Some(info) = conn.query_model(&keys, &refused) {
+            if let Some((info, plant, run)) = conn.query_model(&keys) {
+                // the run instance and the plant, from a sealed answer to a fresh challenge
+                believed.run.learn(run);
+                believed.plant.set(&[plant]);
+                recorder.handle(Incoming::PlantUp(plant.to_string()))?;
                 let limits = RunLimits::new(info.cells as usize);
                 if limits.largest() > conn.limit {
                     // a very large grid: reconnect able to reassemble its largest messages
@@ -600,8 +598,8 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                         &network,
                         &mut credential,
                         limits.largest(),
-                        (&sink, &refused),
-                        (plant_tx.clone(), &id),
+                        (&sink, &believed),
+                        (plant_tx.clone(), id),
                         &mut give_up,
                     )? {
                         Some(c) => conn = c,
@@ -616,7 +614,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
                 conn.state_gate.set_limit(limits.state());
                 // the pipe as the plant resolved it (a plant that does not answer: no map
                 // drawn), taken with the model so that every state from now on is drawn on it
-                let environment = conn.query_environment(&keys, &refused);
+                let environment = conn.query_environment(&keys);
                 recorder.set_model(&info, environment)?;
                 model_known = true;
                 // Our subscriptions reached the plant before this reply did (same link,
@@ -647,7 +645,7 @@ fn record(a: RecordArgs) -> anyhow::Result<ExitCode> {
     while let Ok((_, msg)) = rx.try_recv().or_else(|_| status_rx.try_recv()) {
         recorder.handle(msg.split().0)?;
     }
-    recorder.refused_at_arrival(refused.oversize(), refused.unsealed());
+    recorder.refused_at_arrival(refused.oversize(), arrival_refusals(&refused));
     let closed = close(&mut recorder, &mut output, viewer.as_ref())?;
     let c = recorder.counts();
     if closed.recorded {

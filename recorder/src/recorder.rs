@@ -382,7 +382,7 @@ impl Recorder {
         if total > self.counts.refused {
             self.note(
                 format!(
-                    "{total} payloads refused at arrival so far (not recorded): {oversize} larger than the run's largest legal message, {unsealed} without a valid seal of this run"
+                    "{total} payloads refused at arrival so far (not recorded): {oversize} larger than the run's largest legal message, {unsealed} without a valid seal of this run instance, from a sender that may not send there, or replayed"
                 ),
                 rerun::TextLogLevel::WARN,
             );
@@ -464,9 +464,20 @@ impl Recorder {
                             return Ok(());
                         }
                     }
-                    if !s.controller.is_empty() {
-                        self.controller_id
-                            .get_or_insert_with(|| s.controller.clone());
+                    if !s.controller.is_empty()
+                        && self.controller_id.as_deref() != Some(s.controller.as_str())
+                    {
+                        // the controller of this step (the plant hands a run over between steps)
+                        if let Some(before) = &self.controller_id {
+                            self.note(
+                                format!(
+                                    "controller {} controls the run from step {} (after {before})",
+                                    s.controller, s.step
+                                ),
+                                rerun::TextLogLevel::INFO,
+                            );
+                        }
+                        self.controller_id = Some(s.controller.clone());
                     }
                     let last = (s.last && self.plant_last_state.is_none()).then_some(s.step);
                     self.counts.states += 1;
