@@ -92,6 +92,9 @@ pub struct ControllerRun<'a> {
     pub wait_timeout: f64,
     /// Authentication.
     pub auth: &'a Auth,
+    /// Take the run over at the first step at or after this simulated time, s (`None`: join
+    /// a run without a controller).
+    pub take_over_at: Option<f64>,
     /// More arguments, as the user gave them.
     pub extra: &'a [String],
 }
@@ -173,6 +176,9 @@ impl Programs {
         }
         args.extend(c.scenario.to_args());
         args.extend(["--wait-timeout".into(), c.wait_timeout.to_string()]);
+        if let Some(t) = c.take_over_at {
+            args.extend(["--take-over-at".into(), t.to_string()]);
+        }
         args.extend(c.auth.args());
         args.extend(c.extra.iter().cloned());
         Invocation {
@@ -245,8 +251,21 @@ mod tests {
             scenario: &scenario,
             wait_timeout: 60.0,
             auth: &auth,
+            take_over_at: None,
             extra: &[],
         });
+        let then = programs.controller(&ControllerRun {
+            run_id: "r",
+            policy: "wave",
+            params: &[],
+            scenario: &scenario,
+            wait_timeout: 60.0,
+            auth: &auth,
+            take_over_at: Some(2.5),
+            extra: &[],
+        });
+        assert!(then.args.windows(2).any(|w| w == ["--take-over-at", "2.5"]));
+        assert!(!ctl.args.iter().any(|a| a.starts_with("--take-over")));
         let flags = scenario.to_args();
         let has = |args: &[String]| args.windows(flags.len()).any(|w| w == flags.as_slice());
         assert!(has(&plant.args) && has(&ctl.args), "{plant:?} {ctl:?}");

@@ -5,6 +5,11 @@
 //! for them, and prints the plant's summary and the controller's table of predicted against
 //! simulated metrics. The recording is left in `--out` (default `crawler.rrd`).
 //!
+//! `--then POLICY@SECONDS` (repeatable) starts one more controller per hand-over, which takes the
+//! run over at the first step at or after that simulated time (`crawler controller run
+//! --take-over-at`): several controllers on one timeline, the recording saying who controlled
+//! which steps.
+//!
 //! The run is authenticated: the launcher creates a fresh credential in the run's private
 //! directory (mode 0600 in a 0700 directory), hands its path to the three processes and removes
 //! it when they are done.
@@ -61,9 +66,59 @@ pub struct RunArgs {
     /// that reaches the run's socket can then join, read and disturb it. For comparisons only.
     #[arg(long)]
     no_auth: bool,
+    /// Hand the run over to another policy at a simulated time: POLICY@SECONDS (repeatable;
+    /// each starts a controller that takes the run over at the first step at or after that
+    /// time, with the policy's default parameters and the run's scenario).
+    #[arg(long, value_name = "POLICY@SECONDS")]
+    then: Vec<String>,
     /// More arguments for the controller (after `--`).
     #[arg(last = true)]
     controller_args: Vec<String>,
+}
+
+/// A hand-over of `crawler run --then`: the policy and the simulated time, s.
+#[derive(Debug, Clone, PartialEq)]
+struct Then {
+    policy: String,
+    at: f64,
+}
+
+/// Most `--then` hand-overs of one run.
+const MAX_THEN: usize = 8;
+
+/// Parses `--then` values (POLICY@SECONDS, times increasing, at most [`MAX_THEN`]).
+fn parse_then(values: &[String]) -> anyhow::Result<Vec<Then>> {
+    anyhow::ensure!(
+        values.len() <= MAX_THEN,
+        "invalid --then: {} hand-overs; allowed at most {MAX_THEN}",
+        values.len()
+    );
+    let mut out: Vec<Then> = Vec::new();
+    for v in values {
+        let bad = || {
+            anyhow::anyhow!(
+                "invalid --then = {v:?}: allowed POLICY@SECONDS, a policy name and a simulated time in seconds >= 0 (e.g. reflex@10)"
+            )
+        };
+        let (policy, at) = v.rsplit_once('@').ok_or_else(bad)?;
+        let at: f64 = at.parse().map_err(|_| bad())?;
+        if policy.is_empty() || !at.is_finite() || at < 0.0 {
+            return Err(bad());
+        }
+        if let Some(prev) = out.last() {
+            anyhow::ensure!(
+                at > prev.at,
+                "invalid --then = {v:?}: its time must be later than the hand-over before ({}@{})",
+                prev.policy,
+                prev.at
+            );
+        }
+        out.push(Then {
+            policy: policy.to_string(),
+            at,
+        });
+    }
+    Ok(out)
 }
 
 /// The run's credential, created by the launcher and removed when it is dropped.
@@ -92,15 +147,17 @@ impl Drop for RunCredential {
     }
 }
 
-/// The run's three processes, as they will be started.
+/// The run's processes, as they will be started.
 struct Plan {
     plant: Invocation,
     controller: Invocation,
+    /// The controllers of `--then`, in the order of their hand-overs.
+    then: Vec<Invocation>,
     recorder: Invocation,
 }
 
 impl Plan {
-    fn of(a: &RunArgs, programs: &Programs, run_id: &str, auth: &Auth) -> Self {
+    fn of(a: &RunArgs, then: &[Then], programs: &Programs, run_id: &str, auth: &Auth) -> Self {
         let viewer_exe = std::env::current_dir()
             .map(|d| d.join(".venv/bin/rerun"))
             .ok()
@@ -127,8 +184,24 @@ impl Plan {
                 scenario: &a.scenario,
                 wait_timeout: 60.0,
                 auth,
+                take_over_at: None,
                 extra: &a.controller_args,
             }),
+            then: then
+                .iter()
+                .map(|t| {
+                    programs.controller(&ControllerRun {
+                        run_id,
+                        policy: &t.policy,
+                        params: &[],
+                        scenario: &a.scenario,
+                        wait_timeout: 60.0,
+                        auth,
+                        take_over_at: Some(t.at),
+                        extra: &[],
+                    })
+                })
+                .collect(),
             recorder: programs.recorder(&RecorderRun {
                 run_id,
                 out: &a.out,
@@ -145,6 +218,9 @@ impl Plan {
     fn check(&self, a: &RunArgs) -> anyhow::Result<()> {
         preflight::check_child("plant", &self.plant.check())?;
         preflight::check_child("controller", &self.controller.check())?;
+        for t in &self.then {
+            preflight::check_child("controller", &t.check())?;
+        }
         if let Err(e) = preflight::check_child("recorder", &self.recorder.check()) {
             if let Some(url) = &a.view_url {
                 eprintln!("crawler: the recorder's --connect above is --view-url = {url}");
@@ -159,6 +235,7 @@ impl Plan {
 pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     preflight::check_out(&a.out)?;
     preflight::check_every(a.every)?;
+    let then = parse_then(&a.then)?;
     let programs = Programs::here()?;
     crate::recorder_binary::ensure(&programs)?;
     let interrupted = Arc::new(AtomicBool::new(false));
@@ -179,7 +256,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         Some(c) => Auth::Credential(c.path.clone()),
         None => Auth::Open,
     };
-    let plan = Plan::of(&a, &programs, &run_id, &auth);
+    let plan = Plan::of(&a, &then, &programs, &run_id, &auth);
     plan.check(&a)?;
     if interrupted.load(Ordering::SeqCst) {
         eprintln!("crawler: interrupted before the run started");
@@ -203,7 +280,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
 /// The processes of a started run.
 struct Running {
     plant: Proc,
-    controller: Proc,
+    /// The first controller, then those of `--then`.
+    controllers: Vec<Proc>,
     recorder: Proc,
 }
 
@@ -250,15 +328,20 @@ fn start(plan: &Plan, interrupted: &AtomicBool) -> anyhow::Result<Started> {
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    let controller = spawn(
+    let mut controllers = vec![spawn(
         "controller",
         &plan.controller.exe,
         &plan.controller.args,
         None,
-    )?;
+    )?];
+    // the controllers of the hand-overs ask at once; the plant keeps each request for its step
+    for (i, t) in plan.then.iter().enumerate() {
+        let name: &'static str = Box::leak(format!("controller {}", i + 2).into_boxed_str());
+        controllers.push(spawn(name, &t.exe, &t.args, None)?);
+    }
     Ok(Started::Running(Box::new(Running {
         plant,
-        controller,
+        controllers,
         recorder,
     })))
 }
@@ -272,17 +355,19 @@ fn supervise(
 ) -> anyhow::Result<ExitCode> {
     let Running {
         mut plant,
-        mut controller,
+        mut controllers,
         mut recorder,
     } = *procs;
     loop {
-        let all = &mut [&mut plant, &mut controller, &mut recorder];
-        let failed = first_failure(all);
+        let mut all: Vec<&mut Proc> = vec![&mut plant];
+        all.extend(controllers.iter_mut());
+        all.push(&mut recorder);
+        let failed = first_failure(&mut all);
         if interrupted_with(interrupted, failed) {
-            return Ok(stop_interrupted(all));
+            return Ok(stop_interrupted(&mut all));
         }
         if let Some(failed) = failed {
-            return Ok(stop_all(failed, all));
+            return Ok(stop_all(failed, &mut all));
         }
         if plant.ended().is_some() {
             break;
@@ -290,12 +375,18 @@ fn supervise(
         std::thread::sleep(Duration::from_millis(50));
     }
     let (plant_code, plant_out) = plant.finish(Duration::ZERO);
-    let (ctl_code, ctl_out) = controller.finish(Duration::from_secs(30));
+    let ctl: Vec<(Option<i32>, String)> = controllers
+        .iter_mut()
+        .map(|c| c.finish(Duration::from_secs(30)))
+        .collect();
     let (recorder_code, _) = recorder.finish(Duration::from_secs(60));
     println!("{}", plant_out.trim_end());
     println!();
-    println!("{}", ctl_out.trim_end());
-    println!();
+    for (_, out) in &ctl {
+        println!("{}", out.trim_end());
+        println!();
+    }
+    let ctl_codes: Vec<Option<i32>> = ctl.iter().map(|(c, _)| *c).collect();
     // A recorder still catching up a minute after the run ended was stopped by us (130): its
     // recording is closed properly and holds what it had written; the run itself finished.
     let cut_short = Exit::Interrupted.is(recorder_code);
@@ -313,14 +404,53 @@ fn supervise(
             a.out.display()
         );
     }
-    if [plant_code, ctl_code]
-        .into_iter()
+    if std::iter::once(plant_code)
+        .chain(ctl_codes.iter().copied())
         .all(|c| Exit::Finished.is(c))
         && recorded
     {
         Ok(Exit::Finished.into())
     } else {
-        eprintln!("crawler: exit codes: plant {plant_code:?}, controller {ctl_code:?}, recorder {recorder_code:?}");
+        eprintln!("crawler: exit codes: plant {plant_code:?}, controllers {ctl_codes:?}, recorder {recorder_code:?}");
         Ok(Exit::Failure.into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn then_is_a_policy_and_a_later_time_each() {
+        let v = |xs: &[&str]| xs.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            parse_then(&v(&["reflex@10", "wave@12.5"])).unwrap(),
+            [
+                Then {
+                    policy: "reflex".into(),
+                    at: 10.0
+                },
+                Then {
+                    policy: "wave".into(),
+                    at: 12.5
+                }
+            ]
+        );
+        for bad in [
+            v(&["reflex"]),
+            v(&["@10"]),
+            v(&["reflex@"]),
+            v(&["reflex@-1"]),
+            v(&["reflex@nan"]),
+            v(&["reflex@inf"]),
+        ] {
+            let e = parse_then(&bad).unwrap_err().to_string();
+            assert!(e.contains("invalid --then") && e.contains("POLICY@SECONDS"), "{bad:?}: {e}");
+        }
+        let e = parse_then(&v(&["reflex@10", "wave@10"]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("later than the hand-over before"), "{e}");
+        assert!(parse_then(&v(&["wave@1"; 9])).is_err());
     }
 }
