@@ -111,6 +111,16 @@ impl Run {
         Self { id, endpoint, dir }
     }
 
+    /// Another run with the same id, in its own directory at its own endpoint (a run started
+    /// again after the first ended, as a user would with the same `--run-id`).
+    pub fn same_id(&self) -> Self {
+        let again = Self::new("again");
+        Self {
+            id: self.id.clone(),
+            ..again
+        }
+    }
+
     /// A path in the run's directory.
     pub fn path(&self, name: &str) -> PathBuf {
         self.dir.path().join(name)
@@ -154,6 +164,49 @@ impl Run {
     pub fn transport_only_session(&self, cells: usize) -> zenoh::Session {
         let pw = self.load_credential().transport_password();
         self.session(&crawler_transport::Access::Password(pw), cells)
+    }
+
+    /// A participant of this run on a session that presents `access` (a process of role `role`
+    /// with a fresh id), sealing with `seal` (`None`: it holds no message key), in the run
+    /// instance that the plant's answer to a `get` named, and the plant's id (bounded wait): what
+    /// an attacker who holds the credential, or only the password, can be. (It reads the
+    /// answer's envelope without checking its seal: whoever can read the run can learn both.)
+    pub fn participant(
+        &self,
+        access: &crawler_transport::Access,
+        seal: Option<crawler_transport::Seal>,
+        role: crawler_protocol::Role,
+        cells: usize,
+    ) -> (crawler_transport::Participant, crawler_protocol::ProcessId) {
+        use zenoh::Wait;
+        let session = self.session(access, cells);
+        let keys = crawler_protocol::RunKeys::new(&self.id).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let header = loop {
+            let replies = session
+                .get(keys.model())
+                .payload(vec![0u8; 16])
+                .timeout(Duration::from_millis(500))
+                .wait()
+                .unwrap();
+            let found = replies.iter().find_map(|r| {
+                let att = r.result().ok()?.attachment()?.to_bytes().into_owned();
+                crawler_protocol::Header::decode(&att).ok()
+            });
+            if let Some(h) = found {
+                break h;
+            }
+            assert!(Instant::now() < deadline, "the plant did not answer");
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        let p = crawler_transport::Participant::new(
+            session,
+            role,
+            crawler_transport::process_id(),
+            seal,
+            crawler_transport::gate::RunInstance::known(header.run),
+        );
+        (p, header.sender)
     }
 
     /// Waits until the plant wrote the run's credential (bounded), and returns its path.
@@ -411,6 +464,8 @@ pub struct Entity {
     pub bars: Vec<(i64, Vec<f64>)>,
     /// Points (Points2D archetype): the `step` of each row and its positions, in step order.
     pub points: Vec<(i64, Vec<[f32; 2]>)>,
+    /// Texts (TextLog archetype), static ones included, in the order read.
+    pub texts: Vec<String>,
 }
 
 impl Recording {
@@ -437,6 +492,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
     let strips = rerun::LineStrips2D::descriptor_strips().component;
     let bar_values = rerun::BarChart::descriptor_values().component;
     let positions = rerun::Points2D::descriptor_positions().component;
+    let texts = rerun::TextLog::descriptor_text().component;
     let mut rec = Recording::default();
     for (id, store) in &stores {
         if id.kind() != rerun::StoreKind::Recording {
@@ -446,6 +502,10 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             let path = chunk.entity_path().to_string();
             let path = path.trim_start_matches('/').to_string();
             let e = rec.entities.entry(path).or_default();
+            for row in chunk.iter_component::<rerun::components::Text>(texts) {
+                e.texts
+                    .extend(row.iter().map(|t| t.as_str().to_string()));
+            }
             for row in chunk.iter_component::<rerun::components::LineStrip2D>(strips) {
                 e.strips.push(
                     row.iter()
