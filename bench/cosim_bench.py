@@ -2,7 +2,7 @@
 with and without authentication.
 
 Usage: .venv/bin/python bench/cosim_bench.py [--cells 256] [--steps 20000] [--trials 3]
-                                            [--policies adaptive,reflex]
+                                            [--policies adaptive,reflex] [--baseline DIR]
 Builds the binaries it runs first (`cargo build --release`, said on stderr; a no-op when fresh).
 
 All in one run, interleaved trial by trial so that machine noise hits every column alike:
@@ -15,7 +15,10 @@ All in one run, interleaved trial by trial so that machine noise hits every colu
               (every other column is authenticated, the default);
   policies    lockstep with each feedback controller of `--policies` (`adaptive`: estimator on
               every state, re-optimisation on a worker thread; `reflex`: the distributed law on
-              every node) instead of the open-loop `wave`, against the lockstep column.
+              every node) instead of the open-loop `wave`, against the lockstep column;
+  baseline    with `--baseline DIR`: the lockstep of the `crawler-plant` and `crawler-controller`
+              in DIR (another build, e.g. the one before a protocol change), interleaved with this
+              build's lockstep trial by trial; the table gives this build's rate as a share of it.
 Rates are the plant's own count (`lockstep: N steps in S s`, printed after the run). The table
 gives medians over the trials, the ratios, and the recording's bytes per recorded step against
 the raw field data (u and v as f64, 16 N bytes).
@@ -73,8 +76,10 @@ def pingpong(size, seconds):
         pong.wait()
 
 
-def lockstep(cells, steps, bridge, work, auth=True, policy="wave"):
-    """Returns (steps per second, bytes per state, rrd bytes, (states recorded, of which with fields))."""
+def lockstep(cells, steps, bridge, work, auth=True, policy="wave", exe_dir=None):
+    """Returns (steps per second, bytes per state, rrd bytes, (states recorded, of which with fields));
+    the plant and the controller are those of `exe_dir` (default: this build)."""
+    exe_dir = exe_dir or REL
     run = f"bench{os.getpid()}{int(time.time() * 1000) % 100000}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     t_end = steps * 1e-3
@@ -84,7 +89,7 @@ def lockstep(cells, steps, bridge, work, auth=True, policy="wave"):
     rrd = os.path.join(work, f"{run}.rrd")
     procs = []
     try:
-        plant = subprocess.Popen([os.path.join(REL, "crawler-plant"), "run", *net, "--cells", str(cells),
+        plant = subprocess.Popen([os.path.join(exe_dir, "crawler-plant"), "run", *net, "--cells", str(cells),
                                   "--t-end", str(t_end)],
                                  stdout=subprocess.DEVNULL, stderr=open(perr, "w"))
         procs.append(plant)
@@ -94,7 +99,7 @@ def lockstep(cells, steps, bridge, work, auth=True, policy="wave"):
                                   "--every", "1"], stdout=subprocess.DEVNULL, stderr=open(berr, "w"))
             procs.append(b)
             wait_line(berr, "plant found", b)
-        ctl = subprocess.Popen([os.path.join(REL, "crawler-controller"), "run", *net, "--policy", policy],
+        ctl = subprocess.Popen([os.path.join(exe_dir, "crawler-controller"), "run", *net, "--policy", policy],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         procs.append(ctl)
         if plant.wait(timeout=600) != 0:
@@ -121,6 +126,44 @@ def lockstep(cells, steps, bridge, work, auth=True, policy="wave"):
                 p.wait()
 
 
+def build():
+    print("cosim_bench: building the binaries it runs (cargo build --release; a no-op when fresh)",
+          file=sys.stderr)
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
+                    "-p", "crawler-recorder", "-p", "crawler-transport", "--bins", "--examples"],
+                   check=True, cwd=ROOT)
+
+
+def baseline_only(a):
+    """This build's lockstep against the build in `a.baseline`, trial by trial, alternating order."""
+    if not a.baseline:
+        raise SystemExit("--baseline-only needs --baseline DIR")
+    build()
+    new, old = [], []
+    with tempfile.TemporaryDirectory() as work:
+        lockstep(a.cells, 3000, False, work)  # warm-up
+        lockstep(a.cells, 3000, False, work, exe_dir=a.baseline)
+        for t in range(a.trials):
+            for which in ("new", "old") if t % 2 == 0 else ("old", "new"):
+                if which == "new":
+                    new.append(lockstep(a.cells, a.steps, False, work)[0])
+                else:
+                    old.append(lockstep(a.cells, a.steps, False, work, exe_dir=a.baseline)[0])
+            print(f"trial {t + 1}: this build {new[-1]:.0f}/s, baseline {old[-1]:.0f}/s, "
+                  f"ratio {new[-1] / old[-1]:.3f}", file=sys.stderr)
+    ratios = sorted(x / y for x, y in zip(new, old))
+    print(f"N = {a.cells}, {a.steps} steps per run, authenticated lockstep (wave), loopback TCP, "
+          f"{a.trials} trials interleaved")
+    print()
+    print("| build | lockstep, steps/s (median) | range |")
+    print("| --- | ---: | --- |")
+    print(f"| this build | {statistics.median(new):.0f} | {min(new):.0f} to {max(new):.0f} |")
+    print(f"| {a.baseline} | {statistics.median(old):.0f} | {min(old):.0f} to {max(old):.0f} |")
+    print()
+    print(f"per-trial ratio this build / baseline: median {statistics.median(ratios):.3f} "
+          f"({ratios[0]:.3f} to {ratios[-1]:.3f}, {len(ratios)} trials)")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cells", type=int, default=256)
@@ -129,14 +172,17 @@ def main():
     ap.add_argument("--seconds", type=float, default=4.0, help="duration of each ping-pong")
     ap.add_argument("--policies", default="adaptive,reflex",
                     help="feedback policies timed against wave (comma-separated; empty: none)")
+    ap.add_argument("--baseline", help="a directory with another build's crawler-plant and crawler-controller "
+                                       "to time side by side with this build's lockstep")
+    ap.add_argument("--baseline-only", action="store_true",
+                    help="time only this build's lockstep against --baseline's, interleaved (alternating which "
+                         "goes first), and print their table")
     a = ap.parse_args()
+    if a.baseline_only:
+        return baseline_only(a)
     policies = [p for p in a.policies.split(",") if p]
-    print("cosim_bench: building the binaries it runs (cargo build --release; a no-op when fresh)",
-          file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
-                    "-p", "crawler-recorder", "-p", "crawler-transport", "--bins", "--examples"],
-                   check=True, cwd=ROOT)
-    pp, bare, withb, noauth, sizes, full = [], [], [], [], [], []
+    build()
+    pp, bare, withb, noauth, sizes, full, base = [], [], [], [], [], [], []
     by_policy = {p: [] for p in policies}
     with tempfile.TemporaryDirectory() as work:
         _, state_bytes, _, _ = lockstep(a.cells, 6000, False, work)  # warm-up; learns the state size
@@ -145,6 +191,8 @@ def main():
             # with and without authentication back to back, in alternating order
             for auth in (True, False) if t % 2 == 0 else (False, True):
                 (bare if auth else noauth).append(lockstep(a.cells, a.steps, False, work, auth=auth)[0])
+            if a.baseline:
+                base.append(lockstep(a.cells, a.steps, False, work, exe_dir=a.baseline)[0])
             for p in policies if t % 2 == 0 else reversed(policies):
                 by_policy[p].append(lockstep(a.cells, a.steps, False, work, policy=p)[0])
             rate, _, size, recorded = lockstep(a.cells, a.steps, True, work)
@@ -169,6 +217,10 @@ def main():
     print(f"| lockstep + bridge recording every step | {mw:.0f} | {mw / mb:.2f} of lockstep |")
     print(f"| lockstep without authentication (--no-auth) | {mn:.0f} | "
           f"authenticated lockstep is {mb / mn:.3f} of it |")
+    if a.baseline:
+        mbase = statistics.median(base)
+        print(f"| lockstep of the build in {a.baseline} | {mbase:.0f} | "
+              f"this build's lockstep is {mb / mbase:.3f} of it |")
     for p in policies:
         mp_ = statistics.median(by_policy[p])
         print(f"| lockstep with the `{p}` controller | {mp_:.0f} | {mp_ / mb:.3f} of lockstep (`wave`) |")
@@ -177,6 +229,8 @@ def main():
     print()
     print("per-trial ratios (median, range):")
     pairs = [("authenticated / --no-auth", bare, noauth)]
+    if a.baseline:
+        pairs.append((f"this build / {a.baseline}", bare, base))
     pairs += [(f"{p} / wave", by_policy[p], bare) for p in policies]
     for name, x, y in pairs:
         r = sorted(a / b for a, b in zip(x, y))
