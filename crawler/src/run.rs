@@ -445,7 +445,10 @@ mod tests {
             v(&["reflex@inf"]),
         ] {
             let e = parse_then(&bad).unwrap_err().to_string();
-            assert!(e.contains("invalid --then") && e.contains("POLICY@SECONDS"), "{bad:?}: {e}");
+            assert!(
+                e.contains("invalid --then") && e.contains("POLICY@SECONDS"),
+                "{bad:?}: {e}"
+            );
         }
         let e = parse_then(&v(&["reflex@10", "wave@10"]))
             .unwrap_err()

@@ -386,7 +386,11 @@ mod tests {
             .admit(&encode(&actuation(7, C1)), &other, 7, &c1())
             .unwrap_err();
         assert_eq!(r.kind, Reject::Foreign);
-        assert!(r.reason.contains("sent by 00000000000000c2"), "{}", r.reason);
+        assert!(
+            r.reason.contains("sent by 00000000000000c2"),
+            "{}",
+            r.reason
+        );
     }
 
     #[test]
@@ -416,7 +420,10 @@ mod tests {
             .unwrap_err();
         assert_eq!(r.kind, Reject::Version);
         let counted = adm.rejections();
-        assert_eq!((counted.foreign, counted.malformed, counted.version), (1, 1, 1));
+        assert_eq!(
+            (counted.foreign, counted.malformed, counted.version),
+            (1, 1, 1)
+        );
     }
 
     #[test]
@@ -451,7 +458,8 @@ mod tests {
             let r = adm.admit(&foreign, &c1(), 9, &c1()).unwrap_err();
             assert_eq!((r.kind, r.count), (Reject::Foreign, i));
         }
-        adm.admit(&encode(&actuation(9, C1)), &c1(), 9, &c1()).unwrap();
+        adm.admit(&encode(&actuation(9, C1)), &c1(), 9, &c1())
+            .unwrap();
         let r = adm.rejections();
         assert_eq!((r.stale, r.foreign, r.overflow), (44, 3, 5));
         assert_eq!(r.total(), 44 + 3 + 5);

@@ -380,10 +380,13 @@ mod tests {
             on_lost("wait:2.5", w).unwrap(),
             OnLost::Wait(Duration::from_millis(2500))
         );
-        for bad in ["", "Stop", "wait:", "wait:-1", "wait:0", "wait:nan", "stop:3", "go"] {
+        for bad in [
+            "", "Stop", "wait:", "wait:-1", "wait:0", "wait:nan", "stop:3", "go",
+        ] {
             let e = on_lost(bad, w).unwrap_err().to_string();
             assert!(
-                e.contains("invalid --on-controller-lost") && e.contains("allowed stop, wait or wait:SECONDS"),
+                e.contains("invalid --on-controller-lost")
+                    && e.contains("allowed stop, wait or wait:SECONDS"),
                 "{bad}: {e}"
             );
         }

@@ -9,7 +9,9 @@ use std::sync::Arc;
 
 use crossbeam_channel::{unbounded, Receiver, Sender};
 
-use crawler_protocol::{encode, Environment, ModelInfo, ProcessId, Role, RunKeys, RunLimits, RunNonce};
+use crawler_protocol::{
+    encode, Environment, ModelInfo, ProcessId, Role, RunKeys, RunLimits, RunNonce,
+};
 use crawler_transport::budget::{ByteBudget, Charged};
 use crawler_transport::gate::{Accept, Refused, RunInstance, Senders};
 use crawler_transport::participant::{queue, Admitted, Congestion, Inlet, Outlet, Queue};
@@ -158,13 +160,8 @@ impl Link {
         let keys = RunKeys::new(&network.run_id)?;
         let limits = RunLimits::new(info.cells as usize);
         let session = crawler_transport::open(Role::Plant, network, access, limits.largest())?;
-        let participant = Participant::new(
-            session,
-            Role::Plant,
-            id,
-            seal,
-            RunInstance::known(nonce),
-        );
+        let participant =
+            Participant::new(session, Role::Plant, id, seal, RunInstance::known(nonce));
         // Blocking publishers: with one priority per link (QoS off, which bounds what a link
         // reassembles) a dropping publisher lost most events and metrics behind the states'
         // batches whenever the recorder was a little behind.

@@ -161,8 +161,16 @@ struct Harness {
 impl Harness {
     /// A runner's inbox and outbox with a controller `id` that joins at once (when `join`) and
     /// acts on each state by `act`.
-    fn new(id: &'static str, join_now: bool, act: impl FnMut(&State) -> Act + Send + 'static) -> Self {
-        let joins = if join_now { vec![join(id, None)] } else { vec![] };
+    fn new(
+        id: &'static str,
+        join_now: bool,
+        act: impl FnMut(&State) -> Act + Send + 'static,
+    ) -> Self {
+        let joins = if join_now {
+            vec![join(id, None)]
+        } else {
+            vec![]
+        };
         Self::with(vec![(id, Box::new(act) as Policy)], joins)
     }
 
@@ -222,7 +230,10 @@ fn controllers(
             Topic::State => {
                 let s: State = decode(&bytes).unwrap();
                 published.push(s.step);
-                seen.steps.entry(s.controller.clone()).or_default().push(s.step);
+                seen.steps
+                    .entry(s.controller.clone())
+                    .or_default()
+                    .push(s.step);
                 let Some((act, answered, answering)) = policies.get_mut(&s.controller) else {
                     continue;
                 };
@@ -291,9 +302,7 @@ fn lockstep_under_the_scenarios_wave_is_bit_identical_to_simulate() {
     let runner = Runner::new(opts, plant_id()).unwrap();
     let last_step = last_step();
     assert_eq!(runner.model_info().last_step, last_step);
-    let h = Harness::new(C1, true, move |s| {
-        Act::Send(vec![answer(C1, s.step, wave)])
-    });
+    let h = Harness::new(C1, true, move |s| Act::Send(vec![answer(C1, s.step, wave)]));
     let (outcome, seen) = h.run(runner);
     let statuses = seen.statuses;
     let result = finished(outcome);

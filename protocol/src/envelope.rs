@@ -241,7 +241,13 @@ mod tests {
             ProcessId::parse("0123456789abcdef").unwrap().as_str(),
             "0123456789abcdef"
         );
-        for bad in ["", "0123456789ABCDEF", "0123456789abcde", "0123456789abcdef0", "c0ffee"] {
+        for bad in [
+            "",
+            "0123456789ABCDEF",
+            "0123456789abcde",
+            "0123456789abcdef0",
+            "c0ffee",
+        ] {
             let e = ProcessId::parse(bad).unwrap_err().to_string();
             assert!(e.contains("16 lowercase hex digits"), "{bad}: {e}");
         }

@@ -51,8 +51,8 @@ pub use error::ProtocolError;
 pub use keys::{validate_run_id, Role, RunKeys};
 pub use limits::RunLimits;
 pub use messages::{
-    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Join, Message,
-    Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
+    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Join,
+    Message, Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
     ReportWindow, Series, State, Status, TaskResult, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,
     MAX_SCENARIO_NAME_LEN, PROTOCOL_VERSION,
 };

@@ -6,8 +6,8 @@
 
 use crawler_facts::{Metric, MetricValues};
 use crawler_protocol::{
-    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Join, Message,
-    Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
+    decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Join,
+    Message, Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
     ReportWindow, Role, Series, State, Status, TaskResult, WaveMsg, PROTOCOL_VERSION,
 };
 

@@ -503,8 +503,7 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             let path = path.trim_start_matches('/').to_string();
             let e = rec.entities.entry(path).or_default();
             for row in chunk.iter_component::<rerun::components::Text>(texts) {
-                e.texts
-                    .extend(row.iter().map(|t| t.as_str().to_string()));
+                e.texts.extend(row.iter().map(|t| t.as_str().to_string()));
             }
             for row in chunk.iter_component::<rerun::components::LineStrip2D>(strips) {
                 e.strips.push(

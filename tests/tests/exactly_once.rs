@@ -149,7 +149,8 @@ fn a_stateful_policy_gives_one_digest_in_process_cosimulated_and_with_forced_res
     // the plant resent state 100 while the controller held its answer: answered once
     let (report, plant_err, controller_err) = reflex_with_forced_resends("resend");
     assert_eq!(
-        report["state_digest"], expected.as_str(),
+        report["state_digest"],
+        expected.as_str(),
         "a resent state was answered as a new step"
     );
     assert!(
@@ -205,7 +206,10 @@ fn a_run_handed_over_at_a_step_equals_a_checkpoint_there_resumed_with_the_second
         &["--policy", "reflex", "--take-over-at", "1.5", "--json"],
         FLAGS,
     )));
-    b.wait_for_stderr("asked to take the run over at step", Duration::from_secs(60));
+    b.wait_for_stderr(
+        "asked to take the run over at step",
+        Duration::from_secs(60),
+    );
     let a = run.controller(&strs(&with(&["--policy", "wave", "--json"], FLAGS)));
     let p = plant.wait(Duration::from_secs(600));
     let a = a.wait(Duration::from_secs(120));
@@ -252,12 +256,18 @@ fn a_controller_that_dies_is_replaced_at_its_step_when_the_plant_waits() {
         FLAGS,
         &["--json", "--on-controller-lost", "wait:120"],
     )));
-    let a = run.controller(&strs(&with(&["--policy", "wave", "--stall", "1000:600000"], FLAGS)));
+    let a = run.controller(&strs(&with(
+        &["--policy", "wave", "--stall", "1000:600000"],
+        FLAGS,
+    )));
     // A holds its answer to step 1000 (for ten minutes): the run is at step 1000 when it dies
     a.wait_for_stderr("holding the answer to step 1000", Duration::from_secs(120));
     a.signal("-9");
     let _ = a.wait(Duration::from_secs(30));
-    plant.wait_for_stderr("waiting up to 120 s for a controller", Duration::from_secs(60));
+    plant.wait_for_stderr(
+        "waiting up to 120 s for a controller",
+        Duration::from_secs(60),
+    );
     let b = run.controller(&strs(&with(&["--policy", "reflex", "--take-over"], FLAGS)));
     let p = plant.wait(Duration::from_secs(600));
     let b = b.wait(Duration::from_secs(120));
@@ -281,15 +291,18 @@ fn crawler_run_then_hands_the_run_to_a_second_policy_at_a_time() {
     let run = Run::new("then");
     let rrd = run.path("then.rrd");
     let args = with(
-        &["run", "--policy", "wave", "--then", "reflex@1.5", "--every", "64"],
+        &[
+            "run",
+            "--policy",
+            "wave",
+            "--then",
+            "reflex@1.5",
+            "--every",
+            "64",
+        ],
         &with(
             FLAGS,
-            &[
-                "--out",
-                &rrd.display().to_string(),
-                "--run-id",
-                &run.id,
-            ],
+            &["--out", &rrd.display().to_string(), "--run-id", &run.id],
         )
         .iter()
         .map(String::as_str)

@@ -423,7 +423,10 @@ mod tests {
             Accept::Role(Role::Plant),
             Arc::default(),
         );
-        assert_eq!(check(&blind, &plant(1), b"a", Some(&s)), Err(Refusal::OtherRun));
+        assert_eq!(
+            check(&blind, &plant(1), b"a", Some(&s)),
+            Err(Refusal::OtherRun)
+        );
         assert_eq!(g.refused().other_run(), 1);
     }
 
@@ -431,7 +434,10 @@ mod tests {
     fn only_accepted_senders_pass_and_a_refusal_takes_nothing() {
         let s = Seal::new(&[3; 32]);
         let joined = Senders::of(&[id("00000000000000c1")]);
-        let g = gate(Some(s.clone()), Accept::Ids(Role::Controller, joined.clone()));
+        let g = gate(
+            Some(s.clone()),
+            Accept::Ids(Role::Controller, joined.clone()),
+        );
         let c1 = |seq| header(1, Role::Controller, "00000000000000c1", seq);
         let c2 = header(1, Role::Controller, "00000000000000c2", 1);
         assert_eq!(check(&g, &c1(1), b"a", Some(&s)), Ok(c1(1)));
@@ -439,7 +445,10 @@ mod tests {
         // the plant claiming to be c1
         let mut wrong_role = c1(2);
         wrong_role.role = Role::Plant;
-        assert_eq!(check(&g, &wrong_role, b"a", Some(&s)), Err(Refusal::Foreign));
+        assert_eq!(
+            check(&g, &wrong_role, b"a", Some(&s)),
+            Err(Refusal::Foreign)
+        );
         // c2 joins: its first message passes (the refused one was not taken)
         joined.set(&[id("00000000000000c2")]);
         assert_eq!(check(&g, &c2, b"a", Some(&s)), Ok(c2));
@@ -448,7 +457,13 @@ mod tests {
         let st = gate(Some(s.clone()), Accept::RoleOfKey);
         let att = envelope(Some(&s), "crawler/r/status/plant", &plant(1), &[], b"x");
         assert!(st.check("crawler/r/status/plant", b"x", Some(&att)).is_ok());
-        let att = envelope(Some(&s), "crawler/r/status/controller", &plant(2), &[], b"x");
+        let att = envelope(
+            Some(&s),
+            "crawler/r/status/controller",
+            &plant(2),
+            &[],
+            b"x",
+        );
         assert_eq!(
             st.check("crawler/r/status/controller", b"x", Some(&att)),
             Err(Refusal::Foreign)
@@ -472,7 +487,10 @@ mod tests {
         let mut forged = att.clone();
         forged[41] ^= 1; // the sequence number
         assert_eq!(g.check(KEY, b"a", Some(&forged)), Err(Refusal::Unsealed));
-        assert_eq!(g.check("crawler/r/events", b"a", Some(&att)), Err(Refusal::Unsealed));
+        assert_eq!(
+            g.check("crawler/r/events", b"a", Some(&att)),
+            Err(Refusal::Unsealed)
+        );
         // oversize first, before anything else is looked at
         assert_eq!(g.check(KEY, &[0; 101], None), Err(Refusal::Oversize));
         assert_eq!((g.refused().unsealed(), g.refused().oversize()), (6, 1));
@@ -482,7 +500,10 @@ mod tests {
         let open = gate(None, Accept::Role(Role::Plant));
         assert!(check(&open, &plant(1), b"a", None).is_ok());
         assert_eq!(check(&open, &plant(1), b"a", None), Err(Refusal::Replayed));
-        assert_eq!(check(&open, &plant(2), b"a", Some(&s)), Err(Refusal::Unsealed));
+        assert_eq!(
+            check(&open, &plant(2), b"a", Some(&s)),
+            Err(Refusal::Unsealed)
+        );
     }
 
     #[test]

@@ -33,8 +33,8 @@ pub mod reassembly;
 pub mod runtime_dir;
 pub mod seal;
 
-pub use credential::Credential;
 pub use crawler_protocol::{ProcessId, RunNonce};
+pub use credential::Credential;
 pub use participant::Participant;
 pub use seal::Seal;
 

@@ -357,11 +357,7 @@ impl Participant {
 
     /// Answers every query on `key` that carries a challenge with `bytes`, enveloped with the
     /// challenge and sealed.
-    pub fn answer(
-        &self,
-        key: &str,
-        bytes: Vec<u8>,
-    ) -> anyhow::Result<zenoh::query::Queryable<()>> {
+    pub fn answer(&self, key: &str, bytes: Vec<u8>) -> anyhow::Result<zenoh::query::Queryable<()>> {
         let (run, seal, role, id) = (self.run.clone(), self.seal.clone(), self.role, self.id);
         let seq = AtomicU64::new(0);
         let key = key.to_string();

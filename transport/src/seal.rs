@@ -62,11 +62,7 @@ impl Seal {
     /// True if `seal` is the seal of `payload` with `meta` on `key_expr` (compared in constant
     /// time).
     pub fn verify(&self, key_expr: &str, meta: &[u8], payload: &[u8], seal: &[u8]) -> bool {
-        seal.len() == SEAL_LEN
-            && self
-                .mac(key_expr, meta, payload)
-                .verify_slice(seal)
-                .is_ok()
+        seal.len() == SEAL_LEN && self.mac(key_expr, meta, payload).verify_slice(seal).is_ok()
     }
 }
 

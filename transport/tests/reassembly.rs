@@ -24,7 +24,10 @@ fn messages_beyond_the_links_limit_are_counted_as_dropped() {
             .wait()
             .unwrap()
     };
-    assert!(reassembly::count(), "another tracing subscriber was installed first");
+    assert!(
+        reassembly::count(),
+        "another tracing subscriber was installed first"
+    );
     let router = open(Role::Plant);
     let received = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let r2 = received.clone();

@@ -6,7 +6,9 @@
 
 use std::path::PathBuf;
 
-use crawler_protocol::{encode, Actuation, Header, ProcessId, Role, RunNonce, WaveMsg, PROTOCOL_VERSION};
+use crawler_protocol::{
+    encode, Actuation, Header, ProcessId, Role, RunNonce, WaveMsg, PROTOCOL_VERSION,
+};
 use crawler_transport::credential::write_private;
 use crawler_transport::gate::envelope;
 use crawler_transport::{Credential, Seal};
@@ -22,9 +24,20 @@ fn hexdump(bytes: &[u8]) -> String {
         let hex: Vec<String> = chunk.iter().map(|b| format!("{b:02x}")).collect();
         let ascii: String = chunk
             .iter()
-            .map(|&b| if (0x20..0x7f).contains(&b) { b as char } else { '.' })
+            .map(|&b| {
+                if (0x20..0x7f).contains(&b) {
+                    b as char
+                } else {
+                    '.'
+                }
+            })
             .collect();
-        out.push_str(&format!("{:08x}  {:<47}  |{}|\n", i * 16, hex.join(" "), ascii));
+        out.push_str(&format!(
+            "{:08x}  {:<47}  |{}|\n",
+            i * 16,
+            hex.join(" "),
+            ascii
+        ));
     }
     out
 }

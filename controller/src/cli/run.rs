@@ -127,7 +127,11 @@ pub fn run_client(a: RunArgs) -> anyhow::Result<ExitCode> {
 
 /// `--stall STEP:MS`.
 fn parse_stall(text: &str) -> anyhow::Result<(u64, std::time::Duration)> {
-    let bad = || anyhow::anyhow!("invalid --stall = {text:?}: allowed STEP:MS, two whole numbers (MS at most 600000)");
+    let bad = || {
+        anyhow::anyhow!(
+            "invalid --stall = {text:?}: allowed STEP:MS, two whole numbers (MS at most 600000)"
+        )
+    };
     let (step, ms) = text.split_once(':').ok_or_else(bad)?;
     let step: u64 = step.parse().map_err(|_| bad())?;
     let ms: u64 = ms.parse().map_err(|_| bad())?;
@@ -147,9 +151,21 @@ mod tests {
             parse_stall("100:600").unwrap(),
             (100, std::time::Duration::from_millis(600))
         );
-        for bad in ["", "100", "100:", ":600", "-1:600", "100:-5", "1.5:600", "100:700000"] {
+        for bad in [
+            "",
+            "100",
+            "100:",
+            ":600",
+            "-1:600",
+            "100:-5",
+            "1.5:600",
+            "100:700000",
+        ] {
             let e = parse_stall(bad).unwrap_err().to_string();
-            assert!(e.contains("invalid --stall") && e.contains("allowed STEP:MS"), "{bad}: {e}");
+            assert!(
+                e.contains("invalid --stall") && e.contains("allowed STEP:MS"),
+                "{bad}: {e}"
+            );
         }
     }
 }

@@ -62,10 +62,8 @@ impl Inbox {
         let (status_tx, statuses) = unbounded();
         let budget = ByteBudget::new(status_inbox_bytes());
         let gate = participant.gate(RunLimits::text_message(), from_plant);
-        let status_sub = participant.subscribe(
-            &keys.status(Role::Plant),
-            gate,
-            move |m: Admitted| {
+        let status_sub =
+            participant.subscribe(&keys.status(Role::Plant), gate, move |m: Admitted| {
                 let len = m.bytes.len();
                 // a status that does not decode is dropped here (nothing to act on)
                 let Ok(st) = decode::<Status>(&m.bytes) else {
@@ -74,8 +72,7 @@ impl Inbox {
                 budget
                     .charge(st, len)
                     .is_some_and(|c| status_tx.send(c).is_ok())
-            },
-        )?;
+            })?;
         let (gone_tx, gone) = unbounded();
         let gone_sub = participant.departures(keys, Role::Plant, move |id| {
             if id == plant {

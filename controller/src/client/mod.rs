@@ -462,7 +462,9 @@ fn serve(
         );
     }
     Ok(match outcome {
-        Ok(report) => ClientOutcome::Finished(Box::new(responder.summary(report, first_step, None))),
+        Ok(report) => {
+            ClientOutcome::Finished(Box::new(responder.summary(report, first_step, None)))
+        }
         Err(h) => {
             eprintln!("crawler-controller: {said}");
             ClientOutcome::HandedOver(Box::new(responder.summary(None, first_step, Some(h))))

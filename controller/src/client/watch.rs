@@ -482,7 +482,9 @@ mod tests {
         let mut late = Watch::new("d", &info(8000), "p");
         assert_eq!(late.state(&state("c", 7999, 2, false)), Verdict::Wait);
         match late.status(status("finished", 8000), 0) {
-            Verdict::Ended(why) => assert!(why.contains("before this controller answered"), "{why}"),
+            Verdict::Ended(why) => {
+                assert!(why.contains("before this controller answered"), "{why}")
+            }
             v => panic!("{v:?}"),
         }
     }

@@ -36,8 +36,8 @@ use crawler_physics::plant::Plant;
 use crawler_physics::report::Report;
 use crawler_physics::scenario::Scenario;
 use crawler_protocol::{
-    encode, Environment, FinalReport, ModelInfo, ProcessId, ProcessState, Rejections, Role,
-    State, Status, PROTOCOL_VERSION,
+    encode, Environment, FinalReport, ModelInfo, ProcessId, ProcessState, Rejections, Role, State,
+    Status, PROTOCOL_VERSION,
 };
 use crawler_transport::Network as NetworkSpec;
 
@@ -495,7 +495,12 @@ impl Runner {
                 .enumerate()
                 .map(|(i, t)| {
                     let end = history.get(i + 1).map_or(last_step, |next| next.first);
-                    format!("{} steps {} to {}", t.controller, t.first, end.saturating_sub(1))
+                    format!(
+                        "{} steps {} to {}",
+                        t.controller,
+                        t.first,
+                        end.saturating_sub(1)
+                    )
                 })
                 .collect();
             eprintln!("crawler-plant: controllers: {}", turns.join(", "));

@@ -45,7 +45,11 @@ impl<O: Outbox> Network<'_, O> {
     /// Publishes the state of step `n` again, to whoever controls it now.
     fn republish(&self) {
         let mut s = self.shared.borrow_mut();
-        let controller = s.seat.joined().map(|c| c.id.to_string()).unwrap_or_default();
+        let controller = s
+            .seat
+            .joined()
+            .map(|c| c.id.to_string())
+            .unwrap_or_default();
         if let Some(state) = s.state.as_mut() {
             state.controller = controller;
             let bytes = encode(&*state);
@@ -142,7 +146,10 @@ impl<O: Outbox> Controller for Network<'_, O> {
                     });
                 }
                 (j, None) if now >= deadline => {
-                    let who = j.as_ref().map_or_else(|| "no controller".into(), |j| format!("controller {}", j.id));
+                    let who = j.as_ref().map_or_else(
+                        || "no controller".into(),
+                        |j| format!("controller {}", j.id),
+                    );
                     return Err(Stop {
                         reason: format!(
                             "{who} did not answer step {n} within {:.1} s",

@@ -10,8 +10,8 @@ use crawler_facts::Metric;
 use crawler_physics::execution::{Observer, Stepped};
 use crawler_physics::plant::{Drive, Plant};
 use crawler_protocol::{
-    encode, Applied, EpisodeMsg, Events, Metrics as MetricsMsg, ProcessId, ProcessState,
-    RunLimits, State, WaveMsg, PROTOCOL_VERSION,
+    encode, Applied, EpisodeMsg, Events, Metrics as MetricsMsg, ProcessId, ProcessState, RunLimits,
+    State, WaveMsg, PROTOCOL_VERSION,
 };
 
 use super::{publish_status, rejected, Shared, STATUS_EVERY};

@@ -339,7 +339,10 @@ mod tests {
         admitted(seat.hear(a.clone(), None, 0));
         seat.hear(d.clone(), Some(9000), 5);
         assert!(!seat.left(&b.id), "not the controller");
-        assert!(seat.left(&d.id) == false && seat.due(9000).is_none(), "its request is gone");
+        assert!(
+            seat.left(&d.id) == false && seat.due(9000).is_none(),
+            "its request is gone"
+        );
         assert!(seat.left(&a.id));
         assert_eq!(seat.joined(), None);
         assert!(!senders.contains(&a.id));

@@ -56,7 +56,13 @@ fn flood(
         std::thread::spawn(move || {
             let outlets: Vec<(String, usize, Outlet)> = plan
                 .iter()
-                .map(|(k, l)| (k.clone(), *l, p.outlet(k, Congestion::Block, false).unwrap()))
+                .map(|(k, l)| {
+                    (
+                        k.clone(),
+                        *l,
+                        p.outlet(k, Congestion::Block, false).unwrap(),
+                    )
+                })
                 .collect();
             while !stop.load(Ordering::Relaxed) {
                 for (key, limit, outlet) in &outlets {
@@ -67,8 +73,7 @@ fn flood(
                         if *key == keys.actuation() || *key == keys.join() {
                             sent.to_plant.fetch_add(1, Ordering::Relaxed);
                         }
-                        if *key == keys.state() || *key == keys.events() || *key == keys.metrics()
-                        {
+                        if *key == keys.state() || *key == keys.events() || *key == keys.metrics() {
                             sent.to_recorder.fetch_add(1, Ordering::Relaxed);
                         }
                     }
@@ -121,7 +126,10 @@ fn floods_before_and_after_the_join_stay_within_every_process_budget() {
     let keys = RunKeys::new(&run.id).unwrap();
     let password = Access::Password(credential.transport_password());
     let outsider = Arc::new(run.participant(&password, None, Role::Controller, 512).0);
-    let insider = Arc::new(run.participant(&password, Some(seal), Role::Controller, 512).0);
+    let insider = Arc::new(
+        run.participant(&password, Some(seal), Role::Controller, 512)
+            .0,
+    );
     let sent = Arc::new(Sent::default());
     let floods = |stop: &Arc<AtomicBool>| {
         let mut threads = flood(outsider.clone(), keys.clone(), stop.clone(), sent.clone());

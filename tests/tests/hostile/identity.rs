@@ -189,7 +189,10 @@ fn without_the_message_key_nobody_can_end_or_steer_the_run() {
                 return;
             }
             seen2.fetch_add(1, Ordering::Relaxed);
-            let att = s.attachment().map(|a| a.to_bytes().into_owned()).unwrap_or_default();
+            let att = s
+                .attachment()
+                .map(|a| a.to_bytes().into_owned())
+                .unwrap_or_default();
             if let Some(tx) = spoof_tx.lock().unwrap().as_ref() {
                 let _ = tx.send((st.step, st.controller, att));
             }
@@ -280,11 +283,7 @@ fn forged_tokens_and_rival_replies_neither_join_nor_end_a_run() {
     let keys = RunKeys::new(&run.id).unwrap();
     // the plant's own sealed answers to an earlier question: a replay for any later one
     let earlier = |key: String| {
-        let replies = session
-            .get(key)
-            .payload(vec![7u8; 16])
-            .wait()
-            .unwrap();
+        let replies = session.get(key).payload(vec![7u8; 16]).wait().unwrap();
         let s = replies.recv().unwrap().into_result().unwrap();
         (
             s.payload().to_bytes().into_owned(),
@@ -298,7 +297,10 @@ fn forged_tokens_and_rival_replies_neither_join_nor_end_a_run() {
         session
             .declare_queryable(key)
             .callback(move |q| {
-                let challenge = q.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                let challenge = q
+                    .payload()
+                    .map(|p| p.to_bytes().into_owned())
+                    .unwrap_or_default();
                 // the replayed sealed answer, then the plant's payload echoing this challenge,
                 // without a valid seal
                 let _ = q
@@ -308,7 +310,10 @@ fn forged_tokens_and_rival_replies_neither_join_nor_end_a_run() {
                 let mut forged = attachment[..42].to_vec();
                 forged.extend(&challenge);
                 forged.extend([0u8; 32]);
-                let _ = q.reply(k.as_str(), payload.clone()).attachment(forged).wait();
+                let _ = q
+                    .reply(k.as_str(), payload.clone())
+                    .attachment(forged)
+                    .wait();
             })
             .wait()
             .unwrap()

@@ -69,14 +69,10 @@ fn in_process_digest(policy: &str, cells: i64, t_end: f64) -> String {
         },
     )
     .unwrap();
-    crawler_policies::in_process::run_named(
-        &scenario,
-        policy,
-        &crawler_policies::Params::none(),
-    )
-    .unwrap()
-    .report
-    .state_digest
+    crawler_policies::in_process::run_named(&scenario, policy, &crawler_policies::Params::none())
+        .unwrap()
+        .report
+        .state_digest
 }
 
 /// Puts `bytes` on `key` from `session`, without an envelope; dropped by the sender if its queue
@@ -116,9 +112,10 @@ impl<'a> Outlets<'a> {
     /// waiting for room in the sender's queue.
     fn put(&mut self, key: &str, bytes: Vec<u8>) {
         let p = self.participant;
-        let outlet = self.outlets.entry(key.to_string()).or_insert_with(|| {
-            p.outlet(key, Congestion::Block, false).unwrap()
-        });
+        let outlet = self
+            .outlets
+            .entry(key.to_string())
+            .or_insert_with(|| p.outlet(key, Congestion::Block, false).unwrap());
         outlet.put(bytes).unwrap();
     }
 }
@@ -339,7 +336,12 @@ struct Honest {
 
 impl Honest {
     /// Counts `sample` if it is the plant's (`run` instance, `plant` id) and not seen before.
-    fn count(&mut self, sample: &zenoh::sample::Sample, run: &crawler_protocol::RunNonce, plant: &crawler_protocol::ProcessId) {
+    fn count(
+        &mut self,
+        sample: &zenoh::sample::Sample,
+        run: &crawler_protocol::RunNonce,
+        plant: &crawler_protocol::ProcessId,
+    ) {
         let Some(att) = sample.attachment().map(|a| a.to_bytes().into_owned()) else {
             return;
         };

@@ -9,9 +9,7 @@ use zenoh::sample::Locality;
 use zenoh::Wait;
 
 use crawler_e2e::{json, Run};
-use crawler_protocol::{
-    decode, encode, Join, Role, RunKeys, State, PROTOCOL_VERSION,
-};
+use crawler_protocol::{decode, encode, Join, Role, RunKeys, State, PROTOCOL_VERSION};
 use crawler_transport::{Access, Seal};
 
 use super::{

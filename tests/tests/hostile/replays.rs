@@ -91,7 +91,10 @@ fn capture(
 fn recorded_once(bridge_stderr: &str, honest: &Honest) {
     let episodes = bridge_count(bridge_stderr, " episodes");
     let blocks = bridge_count(bridge_stderr, " metric blocks");
-    assert!(honest.episodes > 100 && honest.blocks > 5, "too short a run");
+    assert!(
+        honest.episodes > 100 && honest.blocks > 5,
+        "too short a run"
+    );
     assert!(
         episodes <= honest.episodes && blocks <= honest.blocks,
         "recorded {episodes} episodes and {blocks} blocks of {} and {} sent: {bridge_stderr}",
@@ -205,9 +208,14 @@ fn replays_from_an_earlier_run_with_a_kept_credential_are_refused() {
     // the first run, recorded by the spy
     let pa = with_cred(plant_args("3"));
     let plant = first.plant(&strs(&pa));
-    let bridge = first.bridge(&first.path("first.rrd"), &strs(&with_cred(super::RECORDER.to_vec())));
+    let bridge = first.bridge(
+        &first.path("first.rrd"),
+        &strs(&with_cred(super::RECORDER.to_vec())),
+    );
     bridge.wait_for_stderr("plant found", Duration::from_secs(30));
-    let password = Credential::load(&cred, &first.id).unwrap().transport_password();
+    let password = Credential::load(&cred, &first.id)
+        .unwrap()
+        .transport_password();
     let (spy, _) = first.participant(
         &Access::Password(password.clone()),
         None,
