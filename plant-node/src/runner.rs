@@ -384,6 +384,7 @@ impl Runner {
                 stuck_fraction: m.stuck_fraction,
                 mean_friction_selection: m.mean_friction_selection,
                 episodes_per_node_per_period: m.episodes_per_node_per_period,
+                clock: b.clock,
             };
             if msg.velocity.is_finite() && msg.power.is_finite() {
                 out.put(Topic::Metrics, encode(&msg));

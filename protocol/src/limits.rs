@@ -273,6 +273,7 @@ mod tests {
             stuck_fraction: -1e300,
             mean_friction_selection: -1e300,
             episodes_per_node_per_period: -1e300,
+            clock: true,
         };
         assert!(encode(&m).len() <= RunLimits::metrics());
     }

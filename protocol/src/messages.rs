@@ -460,6 +460,12 @@ pub struct Metrics {
     pub mean_friction_selection: f64,
     /// Episodes per node per period.
     pub episodes_per_node_per_period: f64,
+    /// True for a clock block: `numerics.block` seconds on the run's clock from its start, closed
+    /// whatever the actuation did (the running metrics of any controller; `block` counts them from
+    /// the run's start, `steady` is false). False for a block of the forcing period counted from
+    /// the last change of actuation. Absent: false.
+    #[serde(default)]
+    pub clock: bool,
 }
 
 impl Message for Metrics {
@@ -1200,6 +1206,7 @@ mod tests {
             stuck_fraction: 0.0,
             mean_friction_selection: 0.0,
             episodes_per_node_per_period: 0.0,
+            clock: false,
         };
         assert_eq!(decode::<Metrics>(&encode(&m)).unwrap(), m);
         m.mileage = Some(f64::NAN);

@@ -84,6 +84,7 @@ fn samples() -> Samples {
         stuck_fraction: 0.2,
         mean_friction_selection: 0.1,
         episodes_per_node_per_period: 1.0,
+        clock: false,
     };
     let status = Status {
         v: PROTOCOL_VERSION,

@@ -103,6 +103,7 @@ fn metrics() -> Metrics {
         stuck_fraction: 0.0,
         mean_friction_selection: -0.5,
         episodes_per_node_per_period: 0.0,
+        clock: false,
     }
 }
 
