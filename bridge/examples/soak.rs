@@ -77,6 +77,7 @@ fn main() -> anyhow::Result<()> {
                 stuck_fraction: 0.1,
                 mean_friction_selection: -0.5,
                 episodes_per_node_per_period: 1.0,
+                clock: false,
             };
             r.handle(Incoming::Metrics(encode(&m)))?;
             let e = Events {
@@ -93,8 +94,7 @@ fn main() -> anyhow::Result<()> {
             };
             r.handle(Incoming::Events(encode(&e)))?;
         }
-        r.pace(0, Duration::ZERO, 0);
-        r.maybe_flush();
+        r.maybe_flush()?;
         if n % (steps / 10).max(1) == 0 {
             println!(
                 "step {n:>8}: {:6.1} MiB, {:.1} s",

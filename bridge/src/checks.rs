@@ -331,6 +331,7 @@ mod tests {
             stuck_fraction: 0.02,
             mean_friction_selection: 0.4,
             episodes_per_node_per_period: 0.01,
+            clock: false,
         }
     }
 
