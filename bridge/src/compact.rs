@@ -142,7 +142,11 @@ fn twin(path: &Path) -> PathBuf {
 
 /// Merges the chunks of the recording at `path` (with the footer if `footer`) and replaces it;
 /// `Ok(None)`, the recording left as it was, if `abort` says so before the end.
-pub fn optimize(path: &Path, footer: bool, abort: &dyn Fn() -> bool) -> anyhow::Result<Option<Merged>> {
+pub fn optimize(
+    path: &Path,
+    footer: bool,
+    abort: &dyn Fn() -> bool,
+) -> anyhow::Result<Option<Merged>> {
     let out = twin(path);
     let result = merge_into(path, &out, footer, abort);
     match result {
@@ -168,8 +172,13 @@ fn merge_into(
     let file = std::fs::File::open(path)
         .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
     let messages = DecoderApp::decode_eager(BufReader::with_capacity(1 << 20, file))?;
-    let sink = FileSink::with_options(out, FileSinkOptions { write_footer: footer })
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
+    let sink = FileSink::with_options(
+        out,
+        FileSinkOptions {
+            write_footer: footer,
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
     let mut m = Merger {
         sink,
         pending: HashMap::new(),

@@ -17,8 +17,8 @@ use std::hash::{BuildHasher, Hasher};
 
 use rerun::blueprint::components::{
     ActiveTab, AutoLayout, AutoViews, ColumnShare, ContainerKind, Corner2D, GridColumns,
-    IncludedContent, PanelState, PlayState, QueryExpression, RootContainer, RowShare,
-    TimelineName, ViewClass, ViewFit, VisualBounds2D as VisualBounds2DComponent,
+    IncludedContent, PanelState, PlayState, QueryExpression, RootContainer, RowShare, TimelineName,
+    ViewClass, ViewFit, VisualBounds2D as VisualBounds2DComponent,
 };
 use rerun::components::Colormap;
 use rerun::external::re_log_types::{BlueprintActivationCommand, LogMsg};
@@ -54,6 +54,7 @@ enum Node {
         col_shares: Vec<f32>,
         row_shares: Vec<f32>,
         grid_columns: Option<u32>,
+        name: Option<&'static str>,
     },
     View {
         class: &'static str,
@@ -91,7 +92,15 @@ fn container(kind: ContainerKind, children: Vec<Node>) -> Node {
         col_shares: Vec::new(),
         row_shares: Vec::new(),
         grid_columns: None,
+        name: None,
     }
+}
+
+fn named(mut node: Node, title: &'static str) -> Node {
+    if let Node::Container { name, .. } = &mut node {
+        *name = Some(title);
+    }
+    node
 }
 
 fn shares(mut node: Node, cols: &[f32], rows: &[f32]) -> Node {
@@ -217,11 +226,23 @@ fn right() -> Node {
     let per_step = grid(
         paths::METRICS
             .iter()
-            .map(|m| view("TimeSeries", &format!("{m} of each step"), paths::step_series(m)))
+            .map(|m| {
+                view(
+                    "TimeSeries",
+                    &format!("{m} of each step"),
+                    paths::step_series(m),
+                )
+            })
             .collect(),
         2,
     );
-    let tabs = container(ContainerKind::Tabs, vec![metrics, per_step]);
+    let tabs = container(
+        ContainerKind::Tabs,
+        vec![
+            named(metrics, "Metrics and task"),
+            named(per_step, "Per step"),
+        ],
+    );
     shares(
         container(
             ContainerKind::Vertical,
@@ -347,6 +368,7 @@ fn log_node(node: &Node, bp: &RecordingStream) -> anyhow::Result<(String, [u8; 1
             col_shares,
             row_shares,
             grid_columns,
+            name,
         } => {
             let mut contents = Vec::new();
             for child in children {
@@ -365,6 +387,9 @@ fn log_node(node: &Node, bp: &RecordingStream) -> anyhow::Result<(String, [u8; 1
             }
             if let Some(g) = grid_columns {
                 arch = arch.with_grid_columns(GridColumns((*g).into()));
+            }
+            if let Some(n) = name {
+                arch = arch.with_display_name(*n);
             }
             let path = format!("container/{}", uuid_string(&id));
             bp.log(path.as_str(), &arch)?;

@@ -65,7 +65,7 @@ pub const RECORDER: &str = "recorder";
 pub const STEP: &str = "step";
 /// The task's progress, each state: `task/distance` (m, the centre of mass's displacement from
 /// the run's first state) and `task/energy` (J, the actuator's work since then); their targets
-/// `task/distance_target` and `task/energy_target` once the plant's final report gives them.
+/// `task/distance/target` and `task/energy/target` once the plant's final report gives them.
 pub const TASK: &str = "task";
 /// What the plant applied over each step (`State.applied`): under a wave, its parameters as
 /// scalar series `actuation/applied/<param>` at every state; under a field, the field.

@@ -192,8 +192,10 @@ fn one_command_runs_the_whole_cosimulation() {
         assert_eq!(rec.entity(path).rows as u64, last + 1, "{path}");
     }
     assert!(
-        out.stderr
-            .contains(&format!("{0} states ({0} with fields): every state's fields recorded", last + 1)),
+        out.stderr.contains(&format!(
+            "{0} states ({0} with fields): every state's fields recorded",
+            last + 1
+        )),
         "{}",
         out.stderr
     );

@@ -201,7 +201,13 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
     let every_2nd: Vec<i64> = (0..=last as i64)
         .filter(|n| n % 2 == 0 || *n == last as i64)
         .collect();
-    let fields = ["fields/u", "fields/v", "fields/tension", "body/segments", "body/world"];
+    let fields = [
+        "fields/u",
+        "fields/v",
+        "fields/tension",
+        "body/segments",
+        "body/world",
+    ];
     for (path, steps) in dataframe_steps(&rrd, &fields) {
         assert_eq!(steps, every_2nd, "{path}");
     }
@@ -556,7 +562,10 @@ fn a_free_body_is_drawn_where_its_nodes_are() {
     assert_eq!(tail.steps, distance.steps);
     for (step, centres, halves) in &cells {
         assert_eq!((centres.len(), halves.len()), (80, 80));
-        let k = tail.steps.binary_search(step).expect("a tail value at every state");
+        let k = tail
+            .steps
+            .binary_search(step)
+            .expect("a tail value at every state");
         let node0 = (half_cell + tail.scalars[k] - distance.scalars[k] - 1.25) / 2.5;
         assert!(
             (f64::from(centres[0][0]) - node0).abs() < 1e-6,
@@ -567,7 +576,11 @@ fn a_free_body_is_drawn_where_its_nodes_are() {
         for i in 0..79 {
             let end = centres[i][0] + halves[i][0];
             let begin = centres[i + 1][0] - halves[i + 1][0];
-            assert!((end - begin).abs() < 1e-6, "step {step}: cells {i} and {}", i + 1);
+            assert!(
+                (end - begin).abs() < 1e-6,
+                "step {step}: cells {i} and {}",
+                i + 1
+            );
         }
     }
     // every node on the pipe's line: eps 0.8 on [1, 1.5), 0.1 elsewhere, at its own X
@@ -677,7 +690,13 @@ runpy.run_path(example, run_name="__main__")
     // no forcing-period block ever closes
     assert!(!rec.entities.contains_key("metrics/velocity/plant"));
     // a clock block every 2 pi / 74.3 s (the scenario's period) of the 3 s run: 35 of them
-    for metric in ["velocity", "power", "mileage", "max_stress", "stuck_fraction"] {
+    for metric in [
+        "velocity",
+        "power",
+        "mileage",
+        "max_stress",
+        "stuck_fraction",
+    ] {
         let running = rec.entity(&format!("metrics/{metric}/running"));
         assert_eq!(running.rows, 35, "{metric}: {} clock blocks", running.rows);
         assert!(running.scalars.iter().all(|v| v.is_finite()));

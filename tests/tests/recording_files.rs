@@ -252,7 +252,9 @@ fn a_running_viewer_receives_the_decimated_run_while_the_file_gets_every_state()
     let deadline = Instant::now() + Duration::from_secs(30);
     let got = loop {
         let got = read_recording(&viewer.saved).map(|r| rows(&r)).ok();
-        if got.as_ref().is_some_and(|g| is_the_decimated_stream(g, &file))
+        if got
+            .as_ref()
+            .is_some_and(|g| is_the_decimated_stream(g, &file))
             || Instant::now() > deadline
         {
             break got;
@@ -261,7 +263,8 @@ fn a_running_viewer_receives_the_decimated_run_while_the_file_gets_every_state()
     };
     viewer.stop();
     assert!(
-        got.as_ref().is_some_and(|g| is_the_decimated_stream(g, &file)),
+        got.as_ref()
+            .is_some_and(|g| is_the_decimated_stream(g, &file)),
         "the viewer got {got:?}, the file has {file:?}; viewer log: {}",
         std::fs::read_to_string(&viewer.err).unwrap_or_default()
     );
@@ -364,7 +367,9 @@ fn spawn_starts_a_viewer_that_receives_the_decimated_run() {
     let deadline = Instant::now() + Duration::from_secs(30);
     let got = loop {
         let got = read_recording(&saved).map(|r| rows(&r)).ok();
-        if got.as_ref().is_some_and(|g| is_the_decimated_stream(g, &file))
+        if got
+            .as_ref()
+            .is_some_and(|g| is_the_decimated_stream(g, &file))
             || Instant::now() > deadline
         {
             break got;

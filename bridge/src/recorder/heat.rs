@@ -50,7 +50,9 @@ impl Heat {
     }
 
     /// The block as a one-row chunk's time columns and components, if it holds rows; empties it.
-    pub fn take(&mut self) -> anyhow::Result<Option<([TimeColumn; 2], Vec<SerializedComponentColumn>)>> {
+    pub fn take(
+        &mut self,
+    ) -> anyhow::Result<Option<([TimeColumn; 2], Vec<SerializedComponentColumn>)>> {
         if self.rows == 0 {
             return Ok(None);
         }

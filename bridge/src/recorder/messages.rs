@@ -91,11 +91,11 @@ impl Recorder {
             s.log_static(paths::task(name), &line(name, c, 2.0))?;
         }
         s.log_static(
-            paths::task("distance_target"),
+            paths::task("distance/target"),
             &line("distance D", [230, 120, 20], 1.5),
         )?;
         s.log_static(
-            paths::task("energy_target"),
+            paths::task("energy/target"),
             &line("energy budget J0", [230, 120, 20], 1.5),
         )?;
         Ok(())
@@ -143,11 +143,20 @@ impl Recorder {
         let Some(env) = env else {
             return Ok(());
         };
-        let eps_max = env.piece_eps.iter().fold(env.eps, |a, &b| a.max(b)).max(1e-12);
+        let eps_max = env
+            .piece_eps
+            .iter()
+            .fold(env.eps, |a, &b| a.max(b))
+            .max(1e-12);
         let band = |eps: f64| 0.04 * l * eps / eps_max;
         let top = 0.05 * l;
         let mut edges = vec![lo];
-        edges.extend(env.piece_start.iter().copied().filter(|x| *x > lo && *x < hi));
+        edges.extend(
+            env.piece_start
+                .iter()
+                .copied()
+                .filter(|x| *x > lo && *x < hi),
+        );
         edges.push(hi);
         let boxes: Vec<(f64, f64, f64)> = edges
             .windows(2)
@@ -443,8 +452,8 @@ impl Recorder {
         )?;
         if let (Some(task), Some(first)) = (&r.task, self.first_at) {
             for (name, target) in [
-                ("distance_target", task.distance_target),
-                ("energy_target", task.energy_budget),
+                ("distance/target", task.distance_target),
+                ("energy/target", task.energy_budget),
             ] {
                 for when in [first, at] {
                     self.columns.scalar(&paths::task(name), when, target);

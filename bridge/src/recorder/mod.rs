@@ -243,7 +243,7 @@ pub fn open_file(path: &Path, footer: bool) -> anyhow::Result<Sinks> {
 }
 
 /// Streams of a recording kept in memory (tests): the file's stream writes to `storage`.
-pub fn in_memory(app: &str) -> anyhow::Result<(Sinks, rerun::sink::MemorySinkStorage)> {
+pub fn in_memory(app: &'static str) -> anyhow::Result<(Sinks, rerun::sink::MemorySinkStorage)> {
     let (file, storage) = rerun::RecordingStreamBuilder::new(app).memory()?;
     Ok((Sinks { file, view: None }, storage))
 }
@@ -523,7 +523,7 @@ impl Recorder {
         if self.last_flush.elapsed() >= self.opts.flush_every {
             self.flush()?;
             for rec in self.sinks.each() {
-                rec.flush_async();
+                let _ = rec.flush_async();
             }
         }
         Ok(())

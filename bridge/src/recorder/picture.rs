@@ -105,10 +105,16 @@ mod tests {
             assert_eq!(cells.len(), 8);
             let left = cells[0].0[0] - cells[0].1[0];
             let right = cells[7].0[0] + cells[7].1[0];
-            assert!((left + 0.5).abs() < 1e-6 && (right - 0.5).abs() < 1e-6, "{left} {right}");
+            assert!(
+                (left + 0.5).abs() < 1e-6 && (right - 0.5).abs() < 1e-6,
+                "{left} {right}"
+            );
             for w in cells.windows(2) {
                 let edge = w[0].0[0] + w[0].1[0];
-                assert!((edge - (w[1].0[0] - w[1].1[0])).abs() < 1e-6, "cells overlap or part");
+                assert!(
+                    (edge - (w[1].0[0] - w[1].1[0])).abs() < 1e-6,
+                    "cells overlap or part"
+                );
             }
             let rest = (0.5 * paths::BODY_HEIGHT) as f32;
             assert!(cells.iter().all(|c| (c.1[1] - rest).abs() < 1e-7));
@@ -133,6 +139,9 @@ mod tests {
         assert!((cells[3].1[1] - expect(0.1)).abs() < 1e-6);
         assert!((cells[4].1[1] - expect(-0.1)).abs() < 1e-6);
         assert!((cells[3].1[0] - (1.1 * 0.125 / 2.0) as f32).abs() < 1e-6);
-        assert!(cells[4].1[1] > cells[3].1[1], "the contracted cell is the thicker");
+        assert!(
+            cells[4].1[1] > cells[3].1[1],
+            "the contracted cell is the thicker"
+        );
     }
 }

@@ -77,7 +77,9 @@ impl Recorder {
             self.lane_nodes = (0..lanes).map(|j| j * n / lanes).collect();
             for &i in &self.lane_nodes {
                 self.columns.lane(&paths::lane(i), at, label(s.stuck[i]));
-                let _ = self.sinks.log_static(paths::lane(i), &super::messages::lane_colours());
+                let _ = self
+                    .sinks
+                    .log_static(paths::lane(i), &super::messages::lane_colours());
             }
         } else {
             for &i in &self.lane_nodes {
@@ -95,7 +97,10 @@ impl Recorder {
     /// largest tension of the state over the cross-section, the stuck fraction the share of its
     /// nodes held by static friction (both at the state's instant).
     fn log_step_values(&mut self, s: &State, at: (u64, f64), mean: f64) {
-        let (area, h) = self.model.as_ref().map_or((f64::NAN, f64::NAN), |m| (m.area, m.step));
+        let (area, h) = self
+            .model
+            .as_ref()
+            .map_or((f64::NAN, f64::NAN), |m| (m.area, m.step));
         let n = s.u.len().max(1) as f64;
         let max_tension = s.tension.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let stuck = s.stuck.iter().filter(|&&x| x).count() as f64 / n;
@@ -143,8 +148,11 @@ impl Recorder {
         self.columns.field(paths::FIELD_U, at, du.clone());
         self.columns
             .field(paths::FIELD_V, at, s.vel.iter().map(|&v| v as f32));
-        self.columns
-            .field(paths::FIELD_TENSION, at, s.tension.iter().map(|&t| t as f32));
+        self.columns.field(
+            paths::FIELD_TENSION,
+            at,
+            s.tension.iter().map(|&t| t as f32),
+        );
         // a field with the other fields, in float64: the values applied
         if let Some(f) = s.applied.as_ref().and_then(|a| a.field.as_ref()) {
             self.columns.field64(paths::APPLIED_FIELD, at, f);
@@ -161,8 +169,11 @@ impl Recorder {
             node_offset: m.node_offset,
             periodic: m.periodic,
         };
-        self.columns
-            .boxes(paths::BODY_SEGMENTS, at, body.segments(&s.u, &s.stuck, mean));
+        self.columns.boxes(
+            paths::BODY_SEGMENTS,
+            at,
+            body.segments(&s.u, &s.stuck, mean),
+        );
         // the camera follows the body: the world moves by minus the centre's position
         self.columns.translation(
             paths::BODY_WORLD,

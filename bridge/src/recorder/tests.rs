@@ -40,10 +40,14 @@ fn state(n: u64, cells: usize, last: bool, f0: f64) -> State {
         step: n,
         time: t,
         controller: "c".into(),
-        u: (0..cells).map(|i| 1e-3 * (i as f64 - 74.0 * t).sin() + 0.05 * t).collect(),
+        u: (0..cells)
+            .map(|i| 1e-3 * (i as f64 - 74.0 * t).sin() + 0.05 * t)
+            .collect(),
         vel: vec![0.05; cells],
         tension: (0..cells).map(|i| i as f64).collect(),
-        stuck: (0..cells).map(|i| (i + n as usize).is_multiple_of(3)).collect(),
+        stuck: (0..cells)
+            .map(|i| (i + n as usize).is_multiple_of(3))
+            .collect(),
         mean_speed: 0.05,
         input_power: 2.0,
         last,
@@ -59,7 +63,11 @@ fn state(n: u64, cells: usize, last: bool, f0: f64) -> State {
     }
 }
 
-fn recorder(opts: RecorderOptions, cells: u64, steps: u64) -> (Recorder, rerun::sink::MemorySinkStorage) {
+fn recorder(
+    opts: RecorderOptions,
+    cells: u64,
+    steps: u64,
+) -> (Recorder, rerun::sink::MemorySinkStorage) {
     let (sinks, storage) = in_memory("tests").expect("memory recording");
     let mut r = Recorder::new(sinks, opts).expect("recorder");
     r.set_model(&ModelInfo::example("tests", cells, steps), None)
@@ -81,7 +89,10 @@ fn every_state_is_recorded_with_its_fields_in_one_chunk_per_entity_per_block() {
     }
     r.finish().unwrap();
     let c = r.counts();
-    assert_eq!((c.states, c.recorded_steps, c.missing_states), (1000, 1000, 0));
+    assert_eq!(
+        (c.states, c.recorded_steps, c.missing_states),
+        (1000, 1000, 0)
+    );
     assert_eq!(
         r.closing_note(),
         "1000 states (1000 with fields): every state's fields recorded"
@@ -144,7 +155,12 @@ fn a_missing_state_is_counted_and_said() {
     }
     r.finish().unwrap();
     assert_eq!(r.counts().missing_states, 1);
-    assert!(r.closing_note().contains("1 states never reached the writer"), "{}", r.closing_note());
+    assert!(
+        r.closing_note()
+            .contains("1 states never reached the writer"),
+        "{}",
+        r.closing_note()
+    );
 }
 
 /// The plant's clock blocks are the running metrics (`metrics/<metric>/running`), its
@@ -187,8 +203,8 @@ fn clock_blocks_are_the_running_metrics_and_period_blocks_the_plants() {
 
 #[test]
 fn every_episode_is_one_row_at_its_step_sent_in_few_chunks() {
-    let (mut r, storage) = recorder(RecorderOptions::default(), 16, 1000);
-    // 5000 episodes in blocks of 50: one full chunk on the way, the rest at the end
+    let (mut r, storage) = recorder(RecorderOptions::default(), 64, 1000);
+    // 5000 episodes in blocks of 50 (at most one per node and message): one full chunk on the way, the rest at the end
     let ep = EpisodeMsg {
         node: 3,
         start: 0.05,
@@ -213,7 +229,9 @@ fn every_episode_is_one_row_at_its_step_sent_in_few_chunks() {
         vec![messages::EPISODE_ROWS, 5000 - messages::EPISODE_ROWS]
     );
     let steps: Vec<i64> = chunks.concat();
-    let expected: Vec<i64> = (100..200).flat_map(|s| std::iter::repeat_n(s, 50)).collect();
+    let expected: Vec<i64> = (100..200)
+        .flat_map(|s| std::iter::repeat_n(s, 50))
+        .collect();
     assert_eq!(steps, expected);
     assert_eq!(r.counts().episodes, 5000);
 }

@@ -277,11 +277,7 @@ impl Connection {
     }
 
     /// The pipe as the plant resolved it, if it answers (sealed) within 200 ms.
-    pub fn query_environment(
-        &self,
-        keys: &RunKeys,
-        refused: &Arc<Refused>,
-    ) -> Option<Environment> {
+    pub fn query_environment(&self, keys: &RunKeys, refused: &Arc<Refused>) -> Option<Environment> {
         self.query(keys.environment(), refused, |e: &Environment| {
             e.run == keys.run()
         })
@@ -342,8 +338,7 @@ fn watch_plants(
         .declare_subscriber(keys.alive_all(Role::Plant))
         .history(true)
         .callback(move |sample| {
-            if let Some(pid) = plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str())
-            {
+            if let Some(pid) = plant_keys.id_of_alive_key(Role::Plant, sample.key_expr().as_str()) {
                 let _ = plant_tx.send(match sample.kind() {
                     zenoh::sample::SampleKind::Put => Incoming::PlantUp(pid.to_string()),
                     zenoh::sample::SampleKind::Delete => Incoming::PlantDown(pid.to_string()),

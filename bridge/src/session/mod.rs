@@ -133,7 +133,7 @@ struct Session {
 pub fn record(s: Settings) -> anyhow::Result<Exit> {
     let url = s.validate()?;
     let keys = RunKeys::new(&s.network.run_id)?;
-    let mut output = Output::new(&s.out)?;
+    let output = Output::new(&s.out)?;
     // from here on Ctrl-C ends the recording properly (and removes an unused temporary file)
     let (stop_tx, stop) = bounded::<()>(4);
     ctrlc::set_handler(move || {
@@ -161,7 +161,7 @@ pub fn record(s: Settings) -> anyhow::Result<Exit> {
             .map(|v| format!(" and live to the viewer at {}", v.url()))
             .unwrap_or_default()
     );
-    let mut session = Session {
+    let session = Session {
         inbox: Inbox::new(s.inbox),
         s,
         keys,
@@ -257,7 +257,11 @@ impl Session {
 
     /// No plant came (or Ctrl-C while waiting): nothing recorded, `--out` as it was.
     fn no_plant(mut self) -> anyhow::Result<Exit> {
-        if let Some(v) = self.viewer.as_ref().filter(|v| v.link() == Link::Connecting) {
+        if let Some(v) = self
+            .viewer
+            .as_ref()
+            .filter(|v| v.link() == Link::Connecting)
+        {
             eprintln!(
                 "crawler-bridge: warning: no Rerun viewer answers at {} (start one with `rerun --bind 127.0.0.1`, or pass --spawn)",
                 v.url()
@@ -267,7 +271,11 @@ impl Session {
         let (_, said) = self.close(false)?;
         eprintln!(
             "crawler-bridge: {}; nothing recorded (no state arrived), {} left as it was{said}",
-            if interrupted { "interrupted" } else { "no plant" },
+            if interrupted {
+                "interrupted"
+            } else {
+                "no plant"
+            },
             self.s.out.display(),
         );
         Ok(if interrupted {
@@ -319,8 +327,7 @@ impl Session {
                 return Ok((Ended::Finished, Some(conn)));
             }
             let r = &self.inbox.refused;
-            self.recorder
-                .refused_at_arrival(r.oversize(), r.unsealed());
+            self.recorder.refused_at_arrival(r.oversize(), r.unsealed());
             if !model_known && Instant::now() >= next_query {
                 next_query = Instant::now() + Duration::from_millis(200);
                 match self.find_model(conn)? {
