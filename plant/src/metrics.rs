@@ -657,8 +657,8 @@ mod tests {
                 m.add_step(t, dt, &step_sums(j as f64), 2.0 * dt, dt);
                 m.add_episode(1e-3);
             }
-            clock.extend(restarted.closed.drain(..));
-            periods.extend(steady.closed.drain(..));
+            clock.append(&mut restarted.closed);
+            periods.append(&mut steady.closed);
         }
         assert!(clock.iter().all(|b| b.clock), "only clock blocks closed");
         let indices: Vec<u64> = clock.iter().map(|b| b.index).collect();

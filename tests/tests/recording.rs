@@ -27,7 +27,7 @@ fn dataframe_steps(rrd: &std::path::Path, paths: &[&str]) -> BTreeMap<String, Ve
         .expect("a recording store");
     let mut out = BTreeMap::new();
     for &path in paths {
-        let filter = EntityPathFilter::parse_strict(&format!("/{path}")).unwrap();
+        let filter = EntityPathFilter::parse_strict(format!("/{path}")).unwrap();
         let contents = engine
             .iter_entity_paths_sorted(&filter)
             .map(|p| (p, None))
