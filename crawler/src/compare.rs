@@ -281,6 +281,7 @@ fn run_one(
         wait_timeout: 300.0,
         auth: &Auth::PlantMade,
         extra: &a.controller_args,
+        take_over_at: None,
     });
     let mut plant = spawn("plant", &plant.exe, &plant.args, None)?;
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();

@@ -211,13 +211,14 @@ impl Taken {
     /// Takes `h` if it is newer than the last message taken from its sender.
     pub fn take(&mut self, h: &Header) -> Result<(), Refusal> {
         let key = (role_byte(h.role), *h.sender.as_bytes());
+        let senders = self.0.len();
         match self.0.get_mut(&key) {
             Some(last) if h.seq <= *last => Err(Refusal::Replayed),
             Some(last) => {
                 *last = h.seq;
                 Ok(())
             }
-            None if self.0.len() >= MAX_SENDERS => Err(Refusal::Overflow),
+            None if senders >= MAX_SENDERS => Err(Refusal::Overflow),
             None => {
                 self.0.insert(key, h.seq);
                 Ok(())
