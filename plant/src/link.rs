@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use crossbeam_channel::{unbounded, Receiver, Sender};
+use crossbeam_channel::{Receiver, Sender};
 
 use crawler_protocol::{
     encode, Environment, ModelInfo, ProcessId, Role, RunKeys, RunLimits, RunNonce,
