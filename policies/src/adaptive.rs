@@ -318,7 +318,7 @@ impl Plan {
                 distance: job.remaining_distance,
                 energy: energy * sv / sp,
                 sigma_max: self.task.sigma_max / ss,
-                end_run: false,
+                ..self.task
             },
             limits: self.limits,
             body_length: BodyLength::Fixed(self.length),
