@@ -15,6 +15,7 @@
 //! loop, bit-identical to the co-simulation.
 
 pub mod adaptive;
+pub mod certify;
 pub mod estimator;
 pub mod in_process;
 pub mod optimal;
