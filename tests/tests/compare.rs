@@ -33,7 +33,11 @@ fn compare_runs_every_policy_through_the_cosimulation() {
     let rows: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
     let rows = rows.as_array().unwrap();
-    assert_eq!(rows.len(), 8, "2 cases x 4 policies: {rows:?}");
+    assert_eq!(
+        rows.len(),
+        10,
+        "2 cases x 5 policies (the oracle included): {rows:?}"
+    );
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
     for r in rows {
         let (case, policy) = (r["case"].as_str().unwrap(), r["policy"].as_str().unwrap());
@@ -82,4 +86,14 @@ fn compare_runs_every_policy_through_the_cosimulation() {
         .find(|r| r["case"] == "nominal" && r["policy"] == "reflex")
         .unwrap();
     assert_eq!(cosim["state_digest"], local.report.state_digest.as_str());
+    // both cases are disclosed: the oracle is the open-loop optimum, bit for bit
+    for case in ["nominal", "free"] {
+        let row = |policy: &str| {
+            rows.iter()
+                .find(|r| r["case"] == case && r["policy"] == policy)
+                .unwrap()["state_digest"]
+                .clone()
+        };
+        assert_eq!(row("oracle"), row("optimal"), "{case}");
+    }
 }
