@@ -20,55 +20,18 @@ use crawler_cli::{Exit, ScenarioArgs};
 use crate::children::{Auth, ControllerRun, PlantRun, Programs, RecorderRun};
 use crate::supervise::{first_failure, interrupt, interrupted_with, spawn, Proc};
 
-/// A case: name, what it is, the scenario (embedded, written next to the results).
-pub struct Case {
-    /// Short name (`--cases`).
-    pub name: &'static str,
-    /// One line.
-    pub about: &'static str,
-    /// The scenario file's text.
-    pub scenario: &'static str,
-}
-
-/// The cases of the comparison.
-pub const CASES: [Case; 5] = [
-    Case {
-        name: "nominal",
-        about: "the paper's crawler and pipe (eps = 0.1, n_F = 0.5), as every controller is told",
-        scenario: include_str!("../../scenarios/paper.toml"),
-    },
-    Case {
-        name: "mismatch",
-        about: "friction eps = 0.3, n_F = 0.7 while controllers are told the paper's 0.1 and 0.5",
-        scenario: include_str!("../../scenarios/mismatch.toml"),
-    },
-    Case {
-        name: "patchy",
-        about: "dry patches (eps 0.8) on a quarter metre of every half metre of an eps = 0.1 pipe, not disclosed",
-        scenario: include_str!("../../scenarios/patchy-pipe.toml"),
-    },
-    Case {
-        name: "free",
-        about: "a free-ended body 2.5 m long (controllers' models assume a periodic body)",
-        scenario: include_str!("../../scenarios/free-body.toml"),
-    },
-    Case {
-        name: "stick-slip",
-        about: "eps = 1: long stick phases (disclosed)",
-        scenario: include_str!("../../scenarios/stick-slip.toml"),
-    },
-];
-
-/// The policies compared by default.
-pub const POLICIES: [&str; 4] = ["optimal", "adaptive", "reflex", "resonance"];
+use crawler_policies::comparison::{route, share};
+pub use crawler_policies::comparison::{Case, CASES, ORACLE, POLICIES};
 
 /// Options of `crawler compare`.
 #[derive(Args)]
 pub struct CompareArgs {
-    /// Cases, comma separated (default: all: nominal, mismatch, patchy, free, stick-slip).
+    /// Cases, comma separated (default: all: nominal, mismatch, patchy, slippery,
+    /// slippery-patches, drift, held-out-slippery, held-out-sticky, free, stick-slip).
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
-    /// Policies, comma separated (default: optimal, adaptive, reflex, resonance).
+    /// Policies, comma separated (default: optimal, oracle, adaptive, reflex, resonance; the
+    /// oracle is the open-loop optimum given the true pipe).
     #[arg(long, value_delimiter = ',')]
     policies: Vec<String>,
     /// Directory for the scenarios used, the recordings and the table.
@@ -92,40 +55,34 @@ pub struct CompareArgs {
     controller_args: Vec<String>,
 }
 
-/// One row of the table.
+/// One row of the table: the library's row and what the co-simulation adds.
 #[derive(Debug, Clone, Default)]
 struct Row {
-    case: String,
-    policy: String,
-    outcome: String,
-    time_to_distance: Option<f64>,
-    energy: Option<f64>,
-    distance: Option<f64>,
-    mileage: Option<f64>,
-    peak_stress: Option<f64>,
-    time_over: Option<f64>,
+    row: crawler_policies::comparison::Row,
     wall: f64,
     state_digest: String,
     recording: String,
-    error: Option<String>,
 }
 
 impl Row {
-    fn json(&self) -> serde_json::Value {
+    fn json(&self, all: &[crawler_policies::comparison::Row]) -> serde_json::Value {
+        let r = &self.row;
         serde_json::json!({
-            "case": self.case,
-            "policy": self.policy,
-            "outcome": self.outcome,
-            "time_to_distance": self.time_to_distance,
-            "energy_used": self.energy,
-            "distance": self.distance,
-            "mileage": self.mileage,
-            "peak_stress": self.peak_stress,
-            "time_above_sigma_max": self.time_over,
+            "case": r.case,
+            "policy": r.policy,
+            "outcome": r.outcome,
+            "succeeded": r.succeeded(),
+            "time_to_distance": r.time_to_distance,
+            "energy_used": r.energy,
+            "distance": r.distance,
+            "mileage": r.mileage,
+            "peak_stress": r.peak_stress,
+            "time_above_sigma_max": r.time_over,
+            "share_of_oracle_gain": share(all, r),
             "wall_seconds": self.wall,
             "state_digest": self.state_digest,
             "recording": self.recording,
-            "error": self.error,
+            "error": r.error,
         })
     }
 }
@@ -181,13 +138,32 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
         std::fs::create_dir_all(a.out_dir.join(case.name))?;
         eprintln!("crawler: case {}: {}", case.name, case.about);
         for policy in &policies {
-            let row = run_one(&programs, &a, case, policy, &scenario, &interrupted);
+            // the oracle: the open-loop optimum in the same plant with the pipe disclosed
+            let (run_policy, text) = route(case, policy)?;
+            let scenario = if policy == ORACLE {
+                let disclosed = a
+                    .out_dir
+                    .join("scenarios")
+                    .join(format!("{}-disclosed.toml", case.name));
+                std::fs::write(&disclosed, text)?;
+                disclosed
+            } else {
+                scenario.clone()
+            };
+            let row = run_one(
+                &programs,
+                &a,
+                case,
+                (policy.as_str(), run_policy.as_str()),
+                &scenario,
+                &interrupted,
+            );
             match &row {
                 Ok(r) => eprintln!(
                     "crawler: {} / {}: {} ({:.1} s of wall time)",
-                    r.case,
-                    r.policy,
-                    r.error.as_deref().unwrap_or(&r.outcome),
+                    r.row.case,
+                    r.row.policy,
+                    r.row.error.as_deref().unwrap_or(&r.row.outcome),
                     r.wall
                 ),
                 Err(e) => eprintln!("crawler: {} / {policy}: {e:#}", case.name),
@@ -201,17 +177,21 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
                 return Ok(Exit::Interrupted.into());
             }
             rows.push(row.unwrap_or_else(|e| Row {
-                case: case.name.into(),
-                policy: policy.clone(),
-                outcome: "failed".into(),
-                error: Some(format!("{e:#}")),
+                row: crawler_policies::comparison::Row {
+                    case: case.name.into(),
+                    policy: policy.clone(),
+                    outcome: "failed".into(),
+                    error: Some(format!("{e:#}")),
+                    ..Default::default()
+                },
                 ..Row::default()
             }));
         }
     }
     let md = table(&rows);
     std::fs::write(a.out_dir.join("table.md"), &md)?;
-    let json = serde_json::Value::Array(rows.iter().map(Row::json).collect());
+    let all: Vec<_> = rows.iter().map(|r| r.row.clone()).collect();
+    let json = serde_json::Value::Array(rows.iter().map(|r| r.json(&all)).collect());
     std::fs::write(
         a.out_dir.join("results.json"),
         serde_json::to_string_pretty(&json)? + "\n",
@@ -223,7 +203,7 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
         a.out_dir.join("results.json").display(),
         a.out_dir.display()
     );
-    Ok(if rows.iter().all(|r| r.error.is_none()) {
+    Ok(if rows.iter().all(|r| r.row.error.is_none()) {
         Exit::Finished.into()
     } else {
         Exit::Failure.into()
@@ -234,7 +214,7 @@ fn run_one(
     programs: &Programs,
     a: &CompareArgs,
     case: &Case,
-    policy: &str,
+    (policy, run_policy): (&str, &str),
     scenario: &Path,
     interrupted: &AtomicBool,
 ) -> anyhow::Result<Row> {
@@ -275,7 +255,7 @@ fn run_one(
     };
     let controller = programs.controller(&ControllerRun {
         run_id: &run_id,
-        policy,
+        policy: run_policy,
         params: &[],
         scenario: &controller_flags,
         wait_timeout: 300.0,
@@ -335,12 +315,12 @@ fn run_one(
     let (bridge_code, _) = bridge.finish(Duration::from_secs(60));
     let mut row =
         parse_report(&plant_out).map_err(|e| anyhow::anyhow!("the plant's report: {e}"))?;
-    row.case = case.name.into();
-    row.policy = policy.into();
+    row.row.case = case.name.into();
+    row.row.policy = policy.into();
     row.wall = started.elapsed().as_secs_f64();
     row.recording = recording.display().to_string();
     if !Exit::Finished.is(ctl_code) {
-        row.error = Some(format!("the controller ended with {ctl_code:?}"));
+        row.row.error = Some(format!("the controller ended with {ctl_code:?}"));
     } else if Exit::Interrupted.is(bridge_code) {
         // still writing a minute after the run ended: stopped, its recording closed properly
         eprintln!(
@@ -349,7 +329,7 @@ fn run_one(
             recording.display()
         );
     } else if !Exit::Finished.is(bridge_code) {
-        row.error = Some(format!("the recorder ended with {bridge_code:?}"));
+        row.row.error = Some(format!("the recorder ended with {bridge_code:?}"));
     }
     Ok(row)
 }
@@ -376,16 +356,19 @@ fn parse_report(json: &str) -> anyhow::Result<Row> {
         distance
     };
     Ok(Row {
-        outcome,
-        time_to_distance: num("time_to_distance"),
-        energy,
-        distance,
-        mileage: match (travelled, energy) {
-            (Some(d), Some(e)) if e > 0.0 => Some(d / e),
-            _ => None,
+        row: crawler_policies::comparison::Row {
+            outcome,
+            time_to_distance: num("time_to_distance"),
+            energy,
+            distance,
+            mileage: match (travelled, energy) {
+                (Some(d), Some(e)) if e > 0.0 => Some(d / e),
+                _ => None,
+            },
+            peak_stress: num("max_stress"),
+            time_over: num("time_over_sigma_max"),
+            ..Default::default()
         },
-        peak_stress: num("max_stress"),
-        time_over: num("time_over_sigma_max"),
         state_digest: v
             .get("state_digest")
             .and_then(|x| x.as_str())
@@ -395,32 +378,10 @@ fn parse_report(json: &str) -> anyhow::Result<Row> {
     })
 }
 
+/// The table (written once, in `crawler_policies::comparison`).
 fn table(rows: &[Row]) -> String {
-    let f = |x: Option<f64>, p: usize| x.map_or("-".to_string(), |v| format!("{v:.p$}"));
-    let mut s = String::from(
-        "| case | policy | outcome | time to D (s) | energy used (J) | distance (m) | mileage (m/J) | peak stress (kPa) | time above sigma_max (s) |\n\
-         | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n",
-    );
-    for r in rows {
-        let outcome = match &r.error {
-            Some(e) => format!("failed: {}", e.replace('|', "/")),
-            None if r.outcome == "reached" => "**reached**".into(),
-            None => r.outcome.clone(),
-        };
-        s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            r.case,
-            r.policy,
-            outcome,
-            f(r.time_to_distance, 2),
-            f(r.energy, 2),
-            f(r.distance, 3),
-            f(r.mileage, 4),
-            f(r.peak_stress.map(|s| s / 1e3), 1),
-            f(r.time_over, 3)
-        );
-    }
-    s
+    let rows: Vec<_> = rows.iter().map(|r| r.row.clone()).collect();
+    crawler_policies::comparison::table(&rows)
 }
 
 #[cfg(test)]
@@ -447,7 +408,7 @@ mod tests {
     "run_time": 20.6
   }
 }"#;
-        let r = parse_report(json).unwrap();
+        let r = parse_report(json).unwrap().row;
         assert_eq!(r.outcome, "reached");
         assert_eq!(r.time_to_distance, Some(20.5));
         assert_eq!(r.energy, Some(19.5));
@@ -461,11 +422,24 @@ mod tests {
                 "\"energy_at_distance\": null",
             )
             .replace("\"time_to_distance\": 20.5", "\"time_to_distance\": null");
-        let r = parse_report(&failed).unwrap();
+        let r = parse_report(&failed).unwrap().row;
         assert_eq!(r.outcome, "energy exhausted");
         assert_eq!(r.time_to_distance, None);
         assert_eq!(r.energy, Some(19.9));
         assert_eq!(r.mileage, Some(1.0004 / 19.9));
-        assert!(table(&[r]).contains("| energy exhausted | - | 19.90 |"));
+        assert!(!r.succeeded());
+        assert!(
+            crawler_policies::comparison::table(&[r]).contains("| energy exhausted | - | 19.90 |")
+        );
+        // a run above sigma_max for longer than the task allows is not a success, even at D
+        let over = json.replace("\"reached\"", "\"stress exceeded\"").replace(
+            "\"time_over_sigma_max\": 0.0",
+            "\"time_over_sigma_max\": 1.765",
+        );
+        let r = parse_report(&over).unwrap().row;
+        assert_eq!(r.outcome, "stress exceeded");
+        assert!(!r.succeeded());
+        assert!(crawler_policies::comparison::table(&[r])
+            .contains("| stress exceeded | 20.500 | 19.50 | 1.000 | 0.0513 | 15.9 | 1.765 |"));
     }
 }

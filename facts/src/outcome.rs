@@ -1,5 +1,9 @@
 //! How a run did against the paper's task: travel the distance `D` on the energy budget `J0`
 //! without exceeding the stress limit `sigma_max`.
+//!
+//! A run succeeds only when all three hold. When one fails, the outcome names the one that failed
+//! first: the stress above `sigma_max` for longer than the task's tolerance, the energy spent
+//! before `D`, or the end of the run with neither.
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -7,8 +11,12 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 /// ([`Outcome::as_str`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Outcome {
-    /// The centre of mass travelled `D` within the energy budget.
+    /// The centre of mass travelled `D` within the energy budget, the stress above `sigma_max`
+    /// for no longer than the task's tolerance.
     Reached,
+    /// The stress was above `sigma_max` for longer than the task's tolerance before `D` was
+    /// reached or the budget spent (the run may have gone on to either: its report says which).
+    StressExceeded,
     /// The actuator spent the budget before `D` was reached.
     EnergyExhausted,
     /// The run ended (its end time) with neither.
@@ -17,15 +25,26 @@ pub enum Outcome {
 
 impl Outcome {
     /// Every outcome.
-    pub const ALL: [Outcome; 3] = [Outcome::Reached, Outcome::EnergyExhausted, Outcome::TimeUp];
+    pub const ALL: [Outcome; 4] = [
+        Outcome::Reached,
+        Outcome::StressExceeded,
+        Outcome::EnergyExhausted,
+        Outcome::TimeUp,
+    ];
 
-    /// The outcome in words: `"reached"`, `"energy exhausted"`, `"time up"`.
+    /// The outcome in words: `"reached"`, `"stress exceeded"`, `"energy exhausted"`, `"time up"`.
     pub fn as_str(self) -> &'static str {
         match self {
             Outcome::Reached => "reached",
+            Outcome::StressExceeded => "stress exceeded",
             Outcome::EnergyExhausted => "energy exhausted",
             Outcome::TimeUp => "time up",
         }
+    }
+
+    /// True only for [`Outcome::Reached`]: the task done within all of its limits.
+    pub fn is_success(self) -> bool {
+        self == Outcome::Reached
     }
 
     /// The outcome named `name`.
@@ -34,9 +53,11 @@ impl Outcome {
     }
 
     /// Every outcome's words, for an error message (equal to [`Outcome::allowed`]).
-    pub const ALLOWED: &'static str = "\"reached\", \"energy exhausted\" or \"time up\"";
+    pub const ALLOWED: &'static str =
+        "\"reached\", \"stress exceeded\", \"energy exhausted\" or \"time up\"";
 
-    /// Every outcome's words, for an error message: `"reached", "energy exhausted" or "time up"`.
+    /// Every outcome's words, for an error message:
+    /// `"reached", "stress exceeded", "energy exhausted" or "time up"`.
     pub fn allowed() -> String {
         let names: Vec<String> = Outcome::ALL
             .iter()
@@ -86,5 +107,10 @@ mod tests {
         }
         assert_eq!(Outcome::allowed(), Outcome::ALLOWED);
         assert!(serde_json::from_str::<Outcome>("\"arrived\"").is_err());
+        assert_eq!(
+            Outcome::ALL.iter().filter(|o| o.is_success()).count(),
+            1,
+            "one way to succeed"
+        );
     }
 }

@@ -153,6 +153,9 @@ pub struct Task {
     pub energy: f64,
     /// Ultimate tensile strength `sigma_max`, Pa.
     pub sigma_max: f64,
+    /// Time the stress may spend above `sigma_max` before the run has failed its task, s
+    /// (0: any time above it fails; the outcome is then "stress exceeded").
+    pub stress_tolerance: f64,
     /// True: the run ends when the centre of mass has travelled `distance` or the actuator has
     /// spent `energy` (task mode, [`crate::task`]); false: it runs to `t_end`.
     pub end_run: bool,
@@ -164,6 +167,7 @@ impl Default for Task {
             distance: 1.0,
             energy: 20.0,
             sigma_max: 100e3,
+            stress_tolerance: 0.0,
             end_run: false,
         }
     }
@@ -180,6 +184,7 @@ impl Task {
         positive("task.distance", self.distance)?;
         positive("task.energy", self.energy)?;
         positive("task.sigma_max", self.sigma_max)?;
+        non_negative("task.stress_tolerance", self.stress_tolerance)?;
         Ok(())
     }
 }

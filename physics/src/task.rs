@@ -4,10 +4,18 @@
 //! A [`TaskTracker`] follows a run one communication step at a time: the distance travelled by the
 //! body's centre of mass (the mean displacement since the start), the net work done by the
 //! actuator (`∫ P dt`: work the body returns to the muscles counts as recovered, as in the paper's
-//! mileage `M = V / P`), the largest stress and the time spent above `sigma_max`. It decides the
-//! outcome: the distance reached first (success, timed by interpolation inside the step), the
-//! energy spent first (failure), or neither by the end of the run. In task mode
-//! (`task.end_run = true`) the run stops at the end of the step that decided it.
+//! mileage `M = V / P`), the largest stress and the time spent above `sigma_max`. It decides how
+//! the run ends: the distance reached first (timed by interpolation inside the step), the energy
+//! spent first, or neither by the end of the run. In task mode (`task.end_run = true`) the run
+//! stops at the end of the step that decided it.
+//!
+//! The outcome adds the stress limit: a run whose time above `sigma_max` passed the task's
+//! `stress_tolerance` (0 by default) before it reached `D` or spent `J0` has failed with "stress
+//! exceeded", whatever came after. The stress does not end the run (a run goes on to `D` or `J0`
+//! as it would without the limit, so its trajectory, its digest and the distance and energy it
+//! reports are those of the same run without a limit); it is counted by whole communication
+//! steps: the step in which the time above `sigma_max` passes the tolerance is the step the limit
+//! broke, at its end ([`TaskTracker::stress_exceeded_at`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -41,6 +49,10 @@ pub struct TaskTracker {
     pub energy_at_distance: Option<f64>,
     /// When the budget was spent (interpolated), s.
     pub exhausted_at: Option<f64>,
+    /// End of the step in which the time above `sigma_max` passed the task's tolerance, s (only
+    /// before the run's end was decided).
+    #[serde(default)]
+    pub stress_exceeded_at: Option<f64>,
 }
 
 impl TaskTracker {
@@ -62,6 +74,7 @@ impl TaskTracker {
             ("task.reached_at", self.reached_at),
             ("task.energy_at_distance", self.energy_at_distance),
             ("task.exhausted_at", self.exhausted_at),
+            ("task.stress_exceeded_at", self.stress_exceeded_at),
         ] {
             if let Some(x) = x {
                 finite(name, x)?;
@@ -84,12 +97,13 @@ impl TaskTracker {
             reached_at: None,
             energy_at_distance: None,
             exhausted_at: None,
+            stress_exceeded_at: None,
         }
     }
 
     /// Takes one communication step that ended at `time` (s) with mean displacement `position`
-    /// (m) and the step's outputs (over `h` seconds). Returns the outcome once decided (the
-    /// distance or the budget reached first), and keeps returning it.
+    /// (m) and the step's outputs (over `h` seconds). Returns how the run ends once that is
+    /// decided (the distance or the budget reached first), and keeps returning it.
     pub fn observe(
         &mut self,
         time: f64,
@@ -107,6 +121,9 @@ impl TaskTracker {
         self.time_over_stress += out.time_over_stress;
         if self.decided().is_some() {
             return self.decided();
+        }
+        if self.stress_exceeded_at.is_none() && self.time_over_stress > self.task.stress_tolerance {
+            self.stress_exceeded_at = Some(time);
         }
         // Linear interpolation inside the step of when each threshold was crossed.
         let crossing = |a: f64, b: f64, level: f64| {
@@ -127,7 +144,9 @@ impl TaskTracker {
         self.decided()
     }
 
-    /// The outcome, if decided.
+    /// How the run ends, if decided: [`Outcome::Reached`] when `D` came first,
+    /// [`Outcome::EnergyExhausted`] when `J0` was spent first (what ends a run in task mode; the
+    /// stress limit does not, see [`Self::outcome`]).
     pub fn decided(&self) -> Option<Outcome> {
         if self.reached_at.is_some() {
             Some(Outcome::Reached)
@@ -138,11 +157,21 @@ impl TaskTracker {
         }
     }
 
-    /// The report of the run so far (the outcome is "time up" if undecided).
+    /// The outcome of the run so far: "stress exceeded" if the stress limit broke before the
+    /// run's end was decided, else how it ended ("time up" if undecided).
+    pub fn outcome(&self) -> Outcome {
+        if self.stress_exceeded_at.is_some() {
+            Outcome::StressExceeded
+        } else {
+            self.decided().unwrap_or(Outcome::TimeUp)
+        }
+    }
+
+    /// The report of the run so far.
     pub fn report(&self) -> TaskReport {
         let t = self.task;
         TaskReport {
-            outcome: self.decided().unwrap_or(Outcome::TimeUp),
+            outcome: self.outcome(),
             distance_target: t.distance,
             distance: self.distance,
             time_to_distance: self.reached_at.map(|r| r - self.start_time),
@@ -153,6 +182,8 @@ impl TaskTracker {
             sigma_max: t.sigma_max,
             max_stress: self.max_stress,
             time_over_sigma_max: self.time_over_stress,
+            stress_tolerance: t.stress_tolerance,
+            stress_exceeded_at: self.stress_exceeded_at.map(|e| e - self.start_time),
             run_time: self.time - self.start_time,
         }
     }
@@ -161,7 +192,7 @@ impl TaskTracker {
 /// How a run did against its task (SI units).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TaskReport {
-    /// "reached", "energy exhausted" or "time up".
+    /// "reached", "stress exceeded", "energy exhausted" or "time up".
     pub outcome: Outcome,
     /// The task's distance D, m.
     pub distance_target: f64,
@@ -183,6 +214,11 @@ pub struct TaskReport {
     pub max_stress: f64,
     /// Time during which the stress exceeded sigma_max, s.
     pub time_over_sigma_max: f64,
+    /// Time the stress may spend above sigma_max, s.
+    pub stress_tolerance: f64,
+    /// Time from the start until the stress had been above sigma_max for longer than the
+    /// tolerance (end of that step), s; only if that came before D or J0.
+    pub stress_exceeded_at: Option<f64>,
     /// Length of the run, s.
     pub run_time: f64,
 }
@@ -207,6 +243,12 @@ impl TaskReport {
             "); largest stress {:.4e} Pa against {:.4e}, {:.4} s above it",
             self.max_stress, self.sigma_max, self.time_over_sigma_max
         );
+        if let Some(t) = self.stress_exceeded_at {
+            s += &format!(
+                " (more than the {} s allowed after {t:.3} s)",
+                self.stress_tolerance
+            );
+        }
         s
     }
 }
@@ -229,6 +271,7 @@ mod tests {
         distance: 1.0,
         energy: 20.0,
         sigma_max: 100e3,
+        stress_tolerance: 0.0,
         end_run: true,
     };
 
@@ -266,6 +309,61 @@ mod tests {
         assert!((r.energy_exhausted_at.unwrap() - 2.5).abs() < 1e-12);
         assert_eq!(r.max_stress, 2e5);
         assert!((r.time_over_sigma_max - 0.7).abs() < 1e-12);
+        // the stress was above the limit (tolerance 0) in the first step, before the budget ran
+        // out: that is the failure named
+        assert_eq!(r.outcome, Outcome::StressExceeded);
+        assert_eq!(r.stress_exceeded_at, Some(1.0));
+    }
+
+    #[test]
+    fn a_run_that_reaches_the_distance_above_the_stress_limit_has_failed() {
+        let over = |tolerance: f64| {
+            let mut t = TaskTracker::new(
+                Task {
+                    stress_tolerance: tolerance,
+                    ..TASK
+                },
+                0.0,
+                0.0,
+            );
+            // 0.3 m per 1 s step; 0.25 s above sigma_max in each of the first two steps
+            for n in 1..=4 {
+                let over = if n <= 2 { 0.25 } else { 0.0 };
+                t.observe(n as f64, 1.0, 0.3 * n as f64, &step(1.0, 1.2e5, over));
+            }
+            t
+        };
+        // with no tolerance the first step broke the limit: the distance came later
+        let t = over(0.0);
+        assert_eq!(t.decided(), Some(Outcome::Reached), "the run ended at D");
+        let r = t.report();
+        assert_eq!(r.outcome, Outcome::StressExceeded);
+        assert_eq!(r.stress_exceeded_at, Some(1.0));
+        assert!(r.time_to_distance.is_some() && r.energy_at_distance.is_some());
+        assert!(r.summary().contains("stress exceeded"), "{}", r.summary());
+        // 0.4 s allowed: broken in the second step (0.5 s above)
+        assert_eq!(over(0.4).report().stress_exceeded_at, Some(2.0));
+        assert_eq!(over(0.4).report().outcome, Outcome::StressExceeded);
+        // 0.5 s allowed: never more than that, so the task is done
+        let r = over(0.5).report();
+        assert_eq!(r.outcome, Outcome::Reached);
+        assert_eq!(r.stress_exceeded_at, None);
+        assert!((r.time_over_sigma_max - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn stress_after_the_run_was_decided_does_not_change_its_outcome() {
+        let mut t = TaskTracker::new(TASK, 0.0, 0.0);
+        assert_eq!(
+            t.observe(1.0, 1.0, 1.5, &step(1.0, 5e4, 0.0)),
+            Some(Outcome::Reached)
+        );
+        // a run that is not in task mode goes on: its stress is reported, the outcome stays
+        t.observe(2.0, 1.0, 3.0, &step(1.0, 2e5, 0.5));
+        let r = t.report();
+        assert_eq!(r.outcome, Outcome::Reached);
+        assert_eq!(r.max_stress, 2e5);
+        assert_eq!(r.time_over_sigma_max, 0.5);
     }
 
     #[test]

@@ -63,11 +63,11 @@ impl Default for EstimatorOptions {
         Self {
             window: 32,
             memory: 2.0,
-            row_tolerance: 0.01,
-            momentum_tolerance: 0.3,
+            row_tolerance: 1e-3,
+            momentum_tolerance: 0.01,
             prior_eps_std: 1.0,
             prior_n_f_std: 0.5,
-            prior_viscous_rel_std: 0.3,
+            prior_viscous_rel_std: 1e-3,
         }
     }
 }
@@ -118,6 +118,12 @@ pub struct Estimate {
     /// Mean squared residual of the rows in units of their tolerance (about 1 or less when the
     /// balances hold as trusted).
     pub chi2: f64,
+    /// The normal load `c_d` (N/m) the estimate is stated with (as told).
+    pub dry: f64,
+    /// The estimated `theta = (c_v, eps c_d, eps c_d n_F)`.
+    pub theta: [f64; 3],
+    /// Its covariance.
+    pub cov: [[f64; 3]; 3],
 }
 
 impl Estimate {
@@ -169,10 +175,8 @@ struct Snapshot {
     mean_v: f64,
     /// `<sgn v>` over all nodes (stuck nodes count 0).
     sign: f64,
-    /// Share of sliding nodes.
-    sliding: f64,
-    /// Mean friction force on the stuck nodes, `(1/N) Σ_stuck dT/dx`, N/m.
-    stuck_force: f64,
+    /// Share of stuck nodes.
+    stuck: f64,
     /// `<v²>`, m²/s².
     v2: f64,
     /// `<|v|>`, m/s.
@@ -188,8 +192,7 @@ struct Window {
     start: Snapshot,
     int_v: f64,
     int_sign: f64,
-    int_sliding: f64,
-    int_stuck_force: f64,
+    int_stuck: f64,
     int_v2: f64,
     int_abs_v: f64,
     int_power: f64,
@@ -197,15 +200,25 @@ struct Window {
 
 type M3 = [[f64; 3]; 3];
 
+/// One row of the regression: `x . theta = y` with standard deviation `std`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// Coefficients of `(c_v, eps c_d, eps c_d n_F)`.
+    pub x: [f64; 3],
+    /// Right-hand side.
+    pub y: f64,
+    /// Standard deviation of `y - x . theta` this row is trusted to (before the inflation for
+    /// errors shared by the windows of one memory).
+    pub std: f64,
+}
+
 /// The friction estimator (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct FrictionEstimator {
     opts: EstimatorOptions,
     body: Body,
     told: Friction,
-    boundary: Boundary,
     length: f64,
-    dx: f64,
     step: f64,
     prior_mean: [f64; 3],
     prior_precision: [f64; 3],
@@ -218,6 +231,7 @@ pub struct FrictionEstimator {
     chi2_weight: f64,
     theta: [f64; 3],
     cov: M3,
+    rows: [Option<Row>; 2],
 }
 
 impl FrictionEstimator {
@@ -227,7 +241,7 @@ impl FrictionEstimator {
         opts: EstimatorOptions,
         body: Body,
         told: Friction,
-        boundary: Boundary,
+        _boundary: Boundary,
         length: f64,
         cells: usize,
         step: f64,
@@ -255,9 +269,7 @@ impl FrictionEstimator {
             opts,
             body,
             told,
-            boundary,
             length,
-            dx: length / cells as f64,
             step,
             prior_mean,
             prior_precision,
@@ -270,6 +282,7 @@ impl FrictionEstimator {
             chi2_weight: 0.0,
             theta: prior_mean,
             cov: [[0.0; 3]; 3],
+            rows: [None; 2],
         };
         me.solve();
         Ok(me)
@@ -280,16 +293,17 @@ impl FrictionEstimator {
         &self.opts
     }
 
+    /// The momentum and energy rows of the last window closed (`None` before the first).
+    pub fn last_rows(&self) -> [Option<Row>; 2] {
+        self.rows
+    }
+
     fn snapshot(&self, s: &Sample) -> Snapshot {
         let n = s.v.len();
         let ae = self.body.stiffness();
         let rho = self.body.density;
         let mut out = Snapshot::default();
         let (mut e_kin, mut e_el) = (0.0, 0.0);
-        let mut prev_t = match self.boundary {
-            Boundary::Periodic => s.tension[n - 1],
-            Boundary::Free => 0.0,
-        };
         for i in 0..n {
             let v = s.v[i];
             let t = s.tension[i];
@@ -297,29 +311,22 @@ impl FrictionEstimator {
             out.v2 += v * v;
             out.abs_v += v.abs();
             if s.stuck[i] {
-                out.stuck_force += (t - prev_t) / self.dx;
-            } else {
-                out.sliding += 1.0;
-                out.sign += if v > 0.0 {
-                    1.0
-                } else if v < 0.0 {
-                    -1.0
-                } else {
-                    0.0
-                };
+                out.stuck += 1.0;
+            } else if v > 0.0 {
+                out.sign += 1.0;
+            } else if v < 0.0 {
+                out.sign -= 1.0;
             }
             e_kin += v * v;
             e_el += t * t;
-            prev_t = t;
         }
         let nf = n as f64;
         out.mean_v /= nf;
         out.v2 /= nf;
         out.abs_v /= nf;
-        out.stuck_force /= nf;
-        out.sliding /= nf;
+        out.stuck /= nf;
         out.sign /= nf;
-        out.energy = self.dx * (0.5 * rho * e_kin + 0.5 * e_el / ae);
+        out.energy = (self.length / nf) * (0.5 * rho * e_kin + 0.5 * e_el / ae);
         out
     }
 
@@ -345,8 +352,7 @@ impl FrictionEstimator {
         w.int_v += h * s.mean_speed;
         w.int_power += h * s.input_power;
         w.int_sign += 0.5 * h * (last.sign + snap.sign);
-        w.int_sliding += 0.5 * h * (last.sliding + snap.sliding);
-        w.int_stuck_force += 0.5 * h * (last.stuck_force + snap.stuck_force);
+        w.int_stuck += 0.5 * h * (last.stuck + snap.stuck);
         w.int_v2 += 0.5 * h * (last.v2 + snap.v2);
         w.int_abs_v += 0.5 * h * (last.abs_v + snap.abs_v);
         self.last = Some(snap);
@@ -364,13 +370,36 @@ impl FrictionEstimator {
         true
     }
 
+    /// Windows in one forgetting time: the errors a window's rows share with the windows of the
+    /// same gait (a stuck node's unknown friction, the model's own bias) do not average out
+    /// over them, so each row counts as one of these.
+    fn windows_per_memory(&self, steps: u32) -> f64 {
+        (self.opts.memory / (steps as f64 * self.step)).max(1.0)
+    }
+
     fn close_window(&mut self, w: &Window, end: &Snapshot) {
         let rho = self.body.density;
-        let mom_x = [w.int_v, w.int_sign, -w.int_sliding];
-        let mom_y = -rho * (end.mean_v - w.start.mean_v) - w.int_stuck_force;
+        let duration = w.steps as f64 * self.step;
+        let dv = end.mean_v - w.start.mean_v;
+        let de = end.energy - w.start.energy;
+        let magnitude = |x: &[f64; 3], theta: &[f64; 3]| -> f64 {
+            (0..3).map(|j| (x[j] * theta[j]).abs()).sum()
+        };
+        // momentum: the stuck nodes' friction selection s is only known to lie in [-1, 1];
+        // it is taken as 0 and its share of the row counted as an error (uniform: 1/sqrt(3))
+        let mom_x = [w.int_v, w.int_sign, -duration];
+        let mom_y = -rho * dv;
+        let dry_upper = (self.theta[1] + 2.0 * self.cov[1][1].max(0.0).sqrt()).max(0.0);
+        let mom_std = ((self.opts.momentum_tolerance
+            * (magnitude(&mom_x, &self.theta) + rho * dv.abs()))
+        .powi(2)
+            + (dry_upper * w.int_stuck / 3f64.sqrt()).powi(2))
+        .sqrt();
         let en_x = [w.int_v2, w.int_abs_v, -w.int_v];
-        let en_y = (w.int_power - (end.energy - w.start.energy)) / self.length;
-        let forget = (-(w.steps as f64) * self.step / self.opts.memory).exp();
+        let en_y = (w.int_power - de) / self.length;
+        let en_std = self.opts.row_tolerance
+            * (magnitude(&en_x, &self.theta) + (w.int_power.abs() + de.abs()) / self.length);
+        let forget = (-duration / self.opts.memory).exp();
         for row in self.info.iter_mut() {
             for x in row.iter_mut() {
                 *x *= forget;
@@ -381,30 +410,33 @@ impl FrictionEstimator {
         }
         self.chi2_sum *= forget;
         self.chi2_weight *= forget;
-        let rows = [
-            (
-                mom_x,
-                mom_y,
-                rho * (end.mean_v - w.start.mean_v).abs() + w.int_stuck_force.abs(),
-                self.opts.momentum_tolerance,
-            ),
-            (
-                en_x,
-                en_y,
-                (w.int_power.abs() + (end.energy - w.start.energy).abs()) / self.length,
-                self.opts.row_tolerance,
-            ),
+        let shared = self.windows_per_memory(w.steps);
+        self.rows = [
+            Some(Row {
+                x: mom_x,
+                y: mom_y,
+                std: mom_std,
+            }),
+            Some(Row {
+                x: en_x,
+                y: en_y,
+                std: en_std,
+            }),
         ];
-        for (x, y, rhs_scale, tolerance) in rows {
-            let terms: f64 = (0..3).map(|j| (x[j] * self.theta[j]).abs()).sum();
-            let scale = tolerance * (terms + rhs_scale);
-            if !(scale.is_finite() && scale > 0.0 && y.is_finite()) {
+        for row in self.rows.into_iter().flatten() {
+            let Row { x, y, std } = row;
+            if !(std.is_finite() && std > 0.0 && y.is_finite() && x.iter().all(|v| v.is_finite())) {
                 continue;
             }
-            let wgt = 1.0 / (scale * scale);
+            // the normalised innovation: the row's residual against the estimate before it,
+            // over the variance it should have (the row's own and the estimate's)
             let pred: f64 = (0..3).map(|j| x[j] * self.theta[j]).sum();
-            self.chi2_sum += (y - pred).powi(2) * wgt;
+            let spread: f64 = (0..3)
+                .map(|i| (0..3).map(|j| x[i] * self.cov[i][j] * x[j]).sum::<f64>())
+                .sum();
+            self.chi2_sum += (y - pred).powi(2) / (std * std + spread.max(0.0));
             self.chi2_weight += 1.0;
+            let wgt = 1.0 / (std * std * shared);
             for i in 0..3 {
                 self.rhs[i] += wgt * x[i] * y;
                 for j in 0..3 {
@@ -426,8 +458,7 @@ impl FrictionEstimator {
             b[i] += self.prior_precision[i] * self.prior_mean[i];
         }
         if let Some(inv) = invert_spd(&a) {
-            let chi2 = self.chi2();
-            let inflate = chi2.max(1.0);
+            let inflate = self.chi2().max(1.0);
             for i in 0..3 {
                 self.theta[i] = (0..3).map(|j| inv[i][j] * b[j]).sum();
                 for j in 0..3 {
@@ -469,6 +500,9 @@ impl FrictionEstimator {
             n_f_std,
             windows: self.windows,
             chi2: self.chi2(),
+            dry: cd,
+            theta: self.theta,
+            cov: self.cov,
         }
     }
 }

@@ -11,10 +11,14 @@
 //! - [`reflex`]: a distributed law of coupled oscillators with local stick, energy and stress
 //!   reflexes.
 //!
+//! [`comparison`] holds the cases, the oracle and the table of `crawler compare`.
+//!
 //! [`in_process::run`] runs a policy against the in-process plant through the plant's execution
 //! loop, bit-identical to the co-simulation.
 
 pub mod adaptive;
+pub mod certify;
+pub mod comparison;
 pub mod estimator;
 pub mod in_process;
 pub mod optimal;

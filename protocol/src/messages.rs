@@ -723,6 +723,11 @@ impl TaskResult {
                 (false, false, false),
                 "none of time_to_distance, energy_at_distance, energy_exhausted_at at time up",
             ),
+            // the stress limit broke first; the run went on to D, to J0 or to its end
+            Outcome::StressExceeded => (
+                (reached.0, reached.0, !reached.0 && reached.2),
+                "time_to_distance with energy_at_distance, or energy_exhausted_at, or none, when the stress was exceeded",
+            ),
         };
         if reached != expected {
             return Err(ProtocolError::invalid(
