@@ -1,5 +1,6 @@
 //! The packaged FMUs in importers and validators we did not write: FMPy (validate, simulate,
-//! state round trip, two instances), fmu-manipulation-toolbox's `fmutool -check`, and ecos.
+//! state round trip, two instances), fmu-manipulation-toolbox's `fmutool -check`, ecos, and
+//! libcosim on its nanosecond clock (the parameter `ticks_per_second`).
 //!
 //! The FMUs are built and packaged once per test process by `scripts/build-fmu.sh` (`cargo test`
 //! builds the library only as an rlib, so the script's `cargo build --release -p crawler-fmu`
@@ -39,6 +40,31 @@ fn fmus() -> &'static Path {
         (dir, path)
     })
     .1
+}
+
+/// The target directory the tests' FMUs were built in (the one `scripts/build-fmu.sh` uses).
+fn target_dir() -> PathBuf {
+    let bin = PathBuf::from(env!("CARGO_BIN_EXE_crawler-fmu"));
+    bin.parent().unwrap().parent().unwrap().to_path_buf()
+}
+
+/// Runs `scripts/build-fmu.sh` with `args` and `CARGO_TARGET_DIR=target`: exit code and
+/// standard error.
+fn build_fmu(args: &[&str], target: &Path) -> (i32, String) {
+    let out = Command::new("bash")
+        .arg(crawler_e2e::repo_root().join("scripts/build-fmu.sh"))
+        .args(args)
+        .env("CARGO_TARGET_DIR", target)
+        .output()
+        .expect("run scripts/build-fmu.sh");
+    (
+        out.status.code().unwrap_or(-1),
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    )
 }
 
 fn fmu(version: u8) -> PathBuf {
@@ -137,49 +163,104 @@ fn simulate_in_process() -> Value {
     serde_json::from_slice(&out.stdout).expect("simulate --json")
 }
 
+/// `crawler-plant simulate --json` on the scenario `text` (written to a temporary file).
+fn simulate_scenario(text: &str) -> Value {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("scenario.toml");
+    std::fs::write(&path, text).expect("write the scenario");
+    let out = Command::new(crawler_e2e::bin("crawler-plant"))
+        .args(["simulate", "--json", "--scenario", path_str(&path)])
+        .output()
+        .expect("run crawler-plant simulate");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("simulate --json")
+}
+
+/// An importer's final state digest and outputs equal `crawler-plant simulate`'s report, bit
+/// for bit (`who` names the importer in messages).
+fn assert_same_as_simulate(who: &str, answer: &Value, reference: &Value) {
+    let o = &answer["outputs"];
+    assert_eq!(
+        answer["digest"], reference["state_digest"],
+        "{who}: final u and v differ from crawler-plant simulate"
+    );
+    for (output, field) in [
+        ("velocity", "velocity"),
+        ("power", "power"),
+        ("mileage", "mileage"),
+        ("max_stress", "max_stress"),
+        ("max_strain", "max_strain"),
+        ("stuck_fraction", "stuck_fraction"),
+        ("mean_friction_selection", "mean_friction_selection"),
+    ] {
+        assert_eq!(
+            bits(&o[output]),
+            bits(&reference[field]),
+            "{who}: {output} = {} in the importer, {} in crawler-plant simulate",
+            o[output],
+            reference[field]
+        );
+    }
+    assert_eq!(
+        bits(&o["steady_periods"]),
+        bits(&reference["window"]["periods"]),
+        "{who}"
+    );
+    assert_eq!(
+        bits(&o["episode_rate"]),
+        bits(&reference["events"]["per_node_per_period"]),
+        "{who}"
+    );
+    assert!(
+        reference["window"]["periods"].as_f64().unwrap() >= 1.0,
+        "{who}: the run must reach its steady metrics for the comparison to mean something"
+    );
+}
+
 #[test]
 fn fmpy_simulate_matches_crawler_plant_simulate_bit_for_bit() {
     let reference = simulate_in_process();
     for version in [2, 3] {
         let fmpy = importers(&["simulate", path_str(&fmu(version))]);
-        let o = &fmpy["outputs"];
         assert_eq!(
             fmpy["steps"], reference["macro_steps"],
             "FMI {version}: the default experiment is the run of simulate"
         );
-        assert_eq!(
-            fmpy["digest"], reference["state_digest"],
-            "FMI {version}: final u and v differ from crawler-plant simulate"
-        );
-        for (output, field) in [
-            ("velocity", "velocity"),
-            ("power", "power"),
-            ("mileage", "mileage"),
-            ("max_stress", "max_stress"),
-            ("max_strain", "max_strain"),
-            ("stuck_fraction", "stuck_fraction"),
-            ("mean_friction_selection", "mean_friction_selection"),
-        ] {
-            assert_eq!(
-                bits(&o[output]),
-                bits(&reference[field]),
-                "FMI {version}: {output} = {} in FMPy, {} in crawler-plant simulate",
-                o[output],
-                reference[field]
-            );
-        }
-        assert_eq!(
-            bits(&o["steady_periods"]),
-            bits(&reference["window"]["periods"])
-        );
-        assert_eq!(
-            bits(&o["episode_rate"]),
-            bits(&reference["events"]["per_node_per_period"])
-        );
+        assert_same_as_simulate(&format!("FMPy, FMI {version}"), &fmpy, &reference);
         // FMPy's own time arithmetic (t = n h) ends where the plant's clock (n H) does
         let t_end = reference["t_end"].as_f64().unwrap();
         let t = fmpy["final_time"].as_f64().unwrap();
         assert!((t - t_end).abs() <= 1e-12 * t_end, "{t} vs {t_end}");
+    }
+}
+
+#[test]
+fn fmpy_default_interval_is_16_h_and_ends_one_h_short() {
+    // FMPy 0.3.32 without output_interval: H from the model description, doubled until the run
+    // has at most 1000 intervals; a fixed-step FMU cannot take a shorter last step, so FMPy
+    // stops at the last whole interval (what docs/fmu.md says)
+    let steps = simulate_in_process()["macro_steps"].as_u64().unwrap();
+    assert_eq!(steps, 10_097, "docs/fmu.md counts the paper run's steps");
+    for version in [2, 3] {
+        let r = importers(&["default", path_str(&fmu(version))]);
+        let h = r["h"].as_f64().unwrap();
+        let interval = r["interval"].as_f64().unwrap();
+        assert!(
+            (interval - 16.0 * h).abs() <= 1e-12 * interval,
+            "FMI {version}: {interval} s is not 16 H"
+        );
+        assert_eq!(r["rows"], 632, "FMI {version}");
+        let last = r["final_time"].as_f64().unwrap();
+        assert!(
+            (last - 10_096.0 * h).abs() <= 1e-9 * last,
+            "FMI {version}: ends at {last} s, not 10096 H"
+        );
+        let stop = r["stop_time"].as_f64().unwrap();
+        assert!((stop - last - h).abs() <= 1e-9 * stop, "FMI {version}");
     }
 }
 
@@ -248,41 +329,282 @@ fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
     assert!((t - steps as f64 * h).abs() < 1e-9, "ecos time {t}");
 }
 
-#[test]
-fn the_readme_fmpy_example_runs_as_shown() {
-    let readme = std::fs::read_to_string(crawler_e2e::repo_root().join("README.md")).unwrap();
-    let start = readme
-        .find("```python\nfrom fmpy import")
-        .expect("README shows an FMPy example");
-    let code = &readme[start + "```python\n".len()..];
+/// The Python example in `file` (relative to the repository) that starts with `start`, with the
+/// FMU's path replaced by the packaged one; `None` if the file shows none.
+fn example(file: &str, start: &str) -> Option<String> {
+    let text = std::fs::read_to_string(crawler_e2e::repo_root().join(file)).unwrap();
+    let at = text.find(&format!("```python\n{start}"))?;
+    let code = &text[at + "```python\n".len()..];
     let code = &code[..code.find("```").unwrap()];
-    assert!(code.lines().count() <= 12, "the example stays short");
-    let code = code.replace("target/fmu/crawler_plant.fmu", path_str(&fmu(2)));
+    Some(code.replace("target/fmu/crawler_plant.fmu", path_str(&fmu(2))))
+}
+
+/// Runs Python `code`; its standard output.
+fn run_python(code: &str) -> String {
     let out = Command::new(crawler_e2e::python())
-        .args(["-c", &code])
+        .args(["-c", code])
         .output()
-        .expect("run the README example");
-    let stdout = String::from_utf8_lossy(&out.stdout);
+        .expect("run the example");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),
         "{stdout}{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // the same run as `crawler-plant simulate --eps 1 --f0 0.2` (printed to 5 digits)
-    let v: f64 = stdout
-        .split("steady V = ")
+    stdout
+}
+
+/// The number printed after `label` in `stdout`.
+fn printed(stdout: &str, label: &str) -> f64 {
+    stdout
+        .split(label)
         .nth(1)
         .and_then(|s| s.split_whitespace().next())
         .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no V in {stdout}"));
+        .unwrap_or_else(|| panic!("no {label:?} in {stdout}"))
+}
+
+#[test]
+fn the_fmu_doc_fmpy_example_runs_as_shown() {
+    // docs/fmu.md's, and the README's while it shows one
+    let examples: Vec<(&str, String)> = ["docs/fmu.md", "README.md"]
+        .into_iter()
+        .filter_map(|f| example(f, "from fmpy import").map(|code| (f, code)))
+        .collect();
+    assert!(
+        examples.iter().any(|(f, _)| *f == "docs/fmu.md"),
+        "docs/fmu.md shows an FMPy example"
+    );
+    // the same run as `crawler-plant simulate --eps 1 --f0 0.2` (printed to 5 digits)
     let out = Command::new(crawler_e2e::bin("crawler-plant"))
         .args(["simulate", "--json", "--eps", "1", "--f0", "0.2"])
         .output()
         .expect("run crawler-plant simulate");
     let reference: Value = serde_json::from_slice(&out.stdout).expect("simulate --json");
     let v_ref = reference["velocity"].as_f64().unwrap();
-    assert!(
-        (v - v_ref).abs() <= 5e-5 * v_ref.abs(),
-        "README example V = {v}, simulate {v_ref}"
+    for (file, code) in examples {
+        assert!(
+            code.lines().count() <= 12,
+            "{file}: the example stays short"
+        );
+        let v = printed(&run_python(&code), "steady V = ");
+        assert!(
+            (v - v_ref).abs() <= 5e-5 * v_ref.abs(),
+            "{file}: example V = {v}, simulate {v_ref}"
+        );
+    }
+}
+
+/// The paper scenario on a nanosecond clock.
+fn paper_on_nanoseconds() -> String {
+    crawler_plant::scenario::PAPER_TOML.replace(
+        "[numerics]\n",
+        "[numerics]\nticks_per_second = 1000000000\n",
+    )
+}
+
+/// H of a `simulate` report in nanoseconds, checked to be the double a nanosecond master computes
+/// from it.
+fn step_ns(reference: &Value) -> u64 {
+    let h = reference["parameters"]["step"].as_f64().unwrap();
+    let ns = (h * 1e9).round() as u64;
+    assert_eq!(
+        (ns as f64 / 1e9).to_bits(),
+        h.to_bits(),
+        "H = {h} s is not a whole number of nanoseconds"
     );
+    ns
+}
+
+/// libcosim steps the FMI 2.0 FMU `steps` times of `step_ns` after setting `parameters`.
+fn libcosim(step_ns: u64, steps: u64, parameters: &[String]) -> Value {
+    let fmu = fmu(2);
+    let (step_ns, steps) = (step_ns.to_string(), steps.to_string());
+    let mut args = vec!["libcosim", path_str(&fmu), &step_ns, &steps];
+    args.extend(parameters.iter().map(String::as_str));
+    importers(&args)
+}
+
+/// libcosim's run of `steps` steps of `step_ns` equals the `simulate` report `reference`.
+fn assert_libcosim_run(who: &str, r: &Value, reference: &Value, step_ns: u64) {
+    assert_eq!(r["ok"], true, "{who}: libcosim failed: {}", r["error"]);
+    let steps = reference["macro_steps"].as_u64().unwrap();
+    assert_eq!(r["time_ns"].as_u64(), Some(steps * step_ns), "{who}");
+    assert_eq!(
+        bits(&r["h"]),
+        bits(&reference["parameters"]["step"]),
+        "{who}"
+    );
+    assert_eq!(bits(&r["dt"]), bits(&reference["dt"]), "{who}");
+    assert_same_as_simulate(who, r, reference);
+}
+
+#[test]
+fn libcosim_runs_the_paper_scenario_on_its_nanosecond_clock_bit_for_bit_like_simulate() {
+    let reference = simulate_scenario(&paper_on_nanoseconds());
+    let ns = step_ns(&reference);
+    let steps = reference["macro_steps"].as_u64().unwrap();
+    let r = libcosim(ns, steps, &["ticks_per_second=1000000000".into()]);
+    assert_libcosim_run("libcosim, paper scenario", &r, &reference, ns);
+    assert_eq!(r["ticks_per_second"], 1_000_000_000);
+}
+
+#[test]
+fn libcosim_runs_a_held_out_scenario_on_its_nanosecond_clock_bit_for_bit_like_simulate() {
+    // another body, friction, wave and step than the FMU's defaults (N = 512: the FMI 2.0 FMU's)
+    let text = r#"
+name = "held-out"
+[body]
+area = 1.2e-4
+density = 0.13
+youngs_modulus = 95e3
+length = 0.8
+[friction]
+viscous = 0.7
+dry = 1.3
+eps = 0.9
+n_f = 0.3
+[actuation]
+f0 = 0.25
+k = 7.853981633974483
+omega = 41.0
+phase = 0.4
+[numerics]
+cells = 512
+step = 2.5e-3
+t_end = 3.0
+settle = 1.5
+ticks_per_second = 1000000000
+"#;
+    let reference = simulate_scenario(text);
+    let s = crawler_plant::scenario::Scenario::from_toml(text, "held-out", &Default::default())
+        .unwrap();
+    let (p, w) = (&s.plant, &s.wave);
+    assert_eq!(p.numerics.cells, 512);
+    let mut parameters: Vec<String> = [
+        ("length", p.length),
+        ("area", p.body.area),
+        ("density", p.body.density),
+        ("youngs_modulus", p.body.youngs_modulus),
+        ("viscous", p.friction.viscous),
+        ("dry", p.friction.dry),
+        ("eps", p.friction.eps),
+        ("n_f", p.friction.n_f),
+        ("courant", p.numerics.courant),
+        ("step", p.numerics.step),
+        ("settle", p.numerics.settle),
+        ("min_stick_periods", p.numerics.min_stick_periods),
+        ("block", p.numerics.block),
+        ("filter", p.numerics.filter),
+        ("wave_f0", w.f0),
+        ("wave_k", w.k),
+        ("wave_omega", w.omega),
+        ("wave_phase", w.phase),
+    ]
+    .iter()
+    .map(|(name, x)| format!("{name}={x:?}"))
+    .collect();
+    parameters.push("ticks_per_second=1000000000".into());
+    let ns = step_ns(&reference);
+    let steps = reference["macro_steps"].as_u64().unwrap();
+    let own = s.plant.discretisation().unwrap();
+    assert!(own.substeps > 1, "H is several internal steps");
+    assert!(
+        reference["stuck_fraction"].as_f64().unwrap() > 0.01
+            && reference["events"]["per_node_per_period"].as_f64().unwrap() > 0.5,
+        "the held-out run sticks and slips: {}",
+        reference["stuck_fraction"]
+    );
+    let r = libcosim(ns, steps, &parameters);
+    assert_libcosim_run("libcosim, held-out scenario", &r, &reference, ns);
+}
+
+#[test]
+fn libcosim_without_the_clock_is_refused_at_the_first_step() {
+    let reference = simulate_in_process();
+    let h = reference["parameters"]["step"].as_f64().unwrap();
+    let r = libcosim((h * 1e9).round() as u64, 1, &[]);
+    assert_eq!(r["ok"], false, "{r}");
+    // libcosim passes on the FMU's reason, which names the parameter that fixes it
+    let error = r["error"].as_str().unwrap();
+    assert!(
+        error.contains("fmi2DoStep") && error.contains("ticks_per_second"),
+        "{error}"
+    );
+}
+
+#[test]
+fn the_fmu_doc_libcosim_example_runs_as_shown() {
+    let code = example("docs/fmu.md", "from libcosimpy").expect("docs/fmu.md shows libcosim");
+    assert!(code.lines().count() <= 18, "the example stays short");
+    let stdout = run_python(&code);
+    let reference = simulate_scenario(&paper_on_nanoseconds());
+    let v = printed(&stdout, "steady V = ");
+    let v_ref = reference["velocity"].as_f64().unwrap();
+    assert!(
+        (v - v_ref).abs() <= 5e-7 * v_ref.abs(),
+        "docs/fmu.md's libcosim example V = {v}, simulate {v_ref}"
+    );
+    assert_eq!(printed(&stdout, "H = "), step_ns(&reference) as f64);
+    assert!(
+        code.contains(&format!("execution.step({})", reference["macro_steps"])),
+        "the example runs the paper scenario's default experiment"
+    );
+}
+
+#[test]
+fn build_fmu_prebuilt_packages_what_cargo_built_and_refuses_a_missing_or_stale_library() {
+    let built = fmus();
+    // --prebuilt after the script's own build: the same archives, member for member
+    let out = tempfile::tempdir().unwrap();
+    let (code, text) = build_fmu(&["--prebuilt", path_str(out.path())], &target_dir());
+    assert_eq!(code, 0, "{text}");
+    let same = Command::new(crawler_e2e::python())
+        .args([
+            "-c",
+            "import sys, zipfile\n\
+             a, b = (zipfile.ZipFile(p) for p in sys.argv[1:])\n\
+             names = sorted(a.namelist())\n\
+             sys.exit(names != sorted(b.namelist()) or any(a.read(n) != b.read(n) for n in names))",
+        ])
+        .args([
+            path_str(&built.join("crawler_plant.fmu")),
+            path_str(&out.path().join("crawler_plant.fmu")),
+        ])
+        .status()
+        .unwrap();
+    assert!(same.success(), "--prebuilt packaged other files");
+    // an empty target directory: the missing file and the command that builds it
+    let empty = tempfile::tempdir().unwrap();
+    let (code, text) = build_fmu(&["--prebuilt", path_str(out.path())], empty.path());
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("libcrawler_fmu.so is missing")
+            && text.contains("cargo build --release -p crawler-fmu"),
+        "{text}"
+    );
+    // what `cargo test` leaves: a newer library in release/deps than in release/
+    let stale = tempfile::tempdir().unwrap();
+    let release = stale.path().join("release");
+    std::fs::create_dir_all(release.join("deps")).unwrap();
+    std::fs::write(release.join("libcrawler_fmu.so"), "old").unwrap();
+    std::fs::write(release.join("deps/libcrawler_fmu.so"), "new").unwrap();
+    std::fs::copy(
+        env!("CARGO_BIN_EXE_crawler-fmu"),
+        release.join("crawler-fmu"),
+    )
+    .unwrap();
+    let (code, text) = build_fmu(&["--prebuilt", path_str(out.path())], stale.path());
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("is older than"), "{text}");
+    // the options are listed, and an unknown one is refused
+    let (code, text) = build_fmu(&["--help"], empty.path());
+    assert_eq!(code, 0);
+    assert!(
+        text.contains("--prebuilt") && text.contains("--portable"),
+        "{text}"
+    );
+    let (code, text) = build_fmu(&["--prebuilt-ish"], empty.path());
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("unknown option --prebuilt-ish"), "{text}");
 }

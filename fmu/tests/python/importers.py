@@ -9,14 +9,22 @@ Commands:
   validate FMU                 fmpy's validate_fmu: {"problems": [...]}
   simulate FMU                 fmpy.simulate_fmu over the default experiment in steps of H:
                                final outputs, the state digest of u and v
+  default FMU                  fmpy.simulate_fmu(FMU) with FMPy's default output interval:
+                               rows, the interval, the last time, H and the stop time
   state FMU T1 T2              state round trip: get + serialize at T1, go on to T2, restore
                                (same instance, and a fresh one from the bytes), replay to T2
   two FMU                      two instances with different parameters, one stepped from a
                                second thread, against each run alone
   ecos FMU STEPS               ecos simulates the FMI 2.0 FMU for STEPS steps of H
+  libcosim FMU STEP_NS STEPS [NAME=VALUE ...]
+                               libcosim (libcosimpy) steps the FMI 2.0 FMU STEPS times on its
+                               integer clock, STEP_NS nanoseconds a step, after setting the
+                               parameters NAME (Integer or Real) to VALUE: final outputs, the
+                               state digest; or {"ok": false, "error": ...} if a step failed
 """
 
 import json
+import os
 import struct
 import sys
 import threading
@@ -165,6 +173,24 @@ def cmd_simulate(path):
     print(json.dumps(out))
 
 
+def cmd_default(path):
+    from fmpy import read_model_description, simulate_fmu
+
+    md = read_model_description(path)
+    result = simulate_fmu(path)
+    print(
+        json.dumps(
+            {
+                "rows": len(result),
+                "interval": float(result["time"][1] - result["time"][0]),
+                "final_time": float(result["time"][-1]),
+                "h": step_size(md),
+                "stop_time": float(md.defaultExperiment.stopTime),
+            }
+        )
+    )
+
+
 def cmd_state(path, t1, t2):
     fmu, md, unzipdir = instantiate(path, "first")
     h = step_size(md)
@@ -267,6 +293,68 @@ def cmd_ecos(path, steps):
     )
 
 
+def cmd_libcosim(path, step_ns, steps, assignments):
+    # libcosim and its FMI Library write their log to file descriptor 1: send it to stderr while
+    # they run, so that stdout carries only the JSON answer
+    stdout = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        answer = libcosim_run(path, step_ns, steps, assignments)
+    finally:
+        sys.stdout.flush()
+        os.dup2(stdout, 1)
+        os.close(stdout)
+    print(json.dumps(answer))
+
+
+def libcosim_run(path, step_ns, steps, assignments):
+    from fmpy import read_model_description
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+    from libcosimpy._internal import get_last_error_message
+
+    log_output_level(CosimLogLevel.ERROR)
+    md = read_model_description(path)
+    vs = variables(md)
+    execution = CosimExecution.from_step_size(step_size=step_ns)
+    slave = CosimLocalSlave(fmu_path=path, instance_name="plant")
+    index = execution.add_local_slave(local_slave=slave)
+    for assignment in assignments:
+        name, value = assignment.split("=", 1)
+        v = vs[name]
+        if v.type == "Integer":
+            ok = execution.integer_initial_value(index, v.valueReference, int(value))
+        elif v.type == "Real":
+            ok = execution.real_initial_value(index, v.valueReference, float(value))
+        else:
+            raise SystemExit(f"{name} is a {v.type}: only Integer and Real parameters are set here")
+        if not ok:
+            raise SystemExit(f"libcosim refused {name} = {value}: {get_last_error_message()}")
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer=observer)
+    if not execution.step(step_count=steps):
+        return {"ok": False, "error": get_last_error_message()}
+    time_ns = execution.status().current_time
+    ref = lambda name: vs[name].valueReference  # noqa: E731
+    n = observer.last_integer_values(index, [ref("cells")])[0]
+    u = observer.last_real_values(index, [ref(f"u[{i + 1}]") for i in range(n)])
+    v = observer.last_real_values(index, [ref(f"v[{i + 1}]") for i in range(n)])
+    substeps, ticks = observer.last_integer_values(index, [ref("substeps"), ref("ticks_per_second")])
+    h, dt = observer.last_real_values(index, [ref("communication_step"), ref("dt")])
+    values = observer.last_real_values(index, [ref(name) for name in OUTPUTS])
+    return {
+        "ok": True,
+        "time_ns": time_ns,
+        "h": h,
+        "dt": dt,
+        "ticks_per_second": ticks,
+        "digest": digest(list(u), list(v), substeps * steps),
+        "outputs": dict(zip(OUTPUTS, values)),
+    }
+
+
 def main(argv):
     if len(argv) < 3:
         raise SystemExit(__doc__)
@@ -275,12 +363,16 @@ def main(argv):
         cmd_validate(path)
     elif cmd == "simulate":
         cmd_simulate(path)
+    elif cmd == "default":
+        cmd_default(path)
     elif cmd == "state":
         cmd_state(path, float(argv[3]), float(argv[4]))
     elif cmd == "two":
         cmd_two(path)
     elif cmd == "ecos":
         cmd_ecos(path, int(argv[3]))
+    elif cmd == "libcosim":
+        cmd_libcosim(path, int(argv[3]), int(argv[4]), argv[5:])
     else:
         raise SystemExit(f"unknown command {cmd!r}\n{__doc__}")
 
