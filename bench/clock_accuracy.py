@@ -68,8 +68,8 @@ def rel(a, b):
 
 
 def main():
-    print("building the release binary (cargo build --release -p crawler-plant-node) ...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node"], check=True, cwd=ROOT)
+    print("building the release binary (cargo build --release -p crawler-plant) ...", file=sys.stderr)
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant"], check=True, cwd=ROOT)
     print("| case | run | Courant number | stuck fraction | its change | V change | P change | sigma change |")
     print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for label, *point in CASES:

@@ -50,7 +50,7 @@ def main():
     ap.add_argument("--trials", type=int, default=3)
     a = ap.parse_args()
     print("building the release binaries (cargo build --release) ...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller"],
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller"],
                    check=True, cwd=ROOT)
     eps, f0, k, alpha = 0.1, 0.0577, 8 * math.pi, 1.001
     wl = 2 * math.pi / k

@@ -10,7 +10,7 @@ All in one run, interleaved trial by trial so that machine noise hits every colu
               blocking congestion control, callback into a channel), a State-sized message out and
               an Actuation-sized message back, over loopback TCP;
   lockstep    `crawler-plant run` + `crawler-controller run --policy wave` over loopback TCP;
-  + bridge    the same with `crawler-bridge record --every 1` attached (every state recorded);
+  + bridge    the same with `crawler-recorder record --every 1` attached (every state recorded);
   no auth     lockstep with `--no-auth` on both processes: no zenoh password, no message seals
               (every other column is authenticated, the default);
   policies    lockstep with each feedback controller of `--policies` (`adaptive`: estimator on
@@ -90,7 +90,7 @@ def lockstep(cells, steps, bridge, work, auth=True, policy="wave"):
         procs.append(plant)
         wait_line(perr, "waiting for a controller", plant)
         if bridge:
-            b = subprocess.Popen([os.path.join(REL, "crawler-bridge"), "record", *net, "--out", rrd,
+            b = subprocess.Popen([os.path.join(REL, "crawler-recorder"), "record", *net, "--out", rrd,
                                   "--every", "1"], stdout=subprocess.DEVNULL, stderr=open(berr, "w"))
             procs.append(b)
             wait_line(berr, "plant found", b)
@@ -133,8 +133,8 @@ def main():
     policies = [p for p in a.policies.split(",") if p]
     print("cosim_bench: building the binaries it runs (cargo build --release; a no-op when fresh)",
           file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
-                    "-p", "crawler-bridge", "-p", "crawler-transport", "--bins", "--examples"],
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
+                    "-p", "crawler-recorder", "-p", "crawler-transport", "--bins", "--examples"],
                    check=True, cwd=ROOT)
     pp, bare, withb, noauth, sizes, full = [], [], [], [], [], []
     by_policy = {p: [] for p in policies}

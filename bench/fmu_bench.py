@@ -9,7 +9,7 @@ Usage: .venv/bin/python bench/fmu_bench.py [--repeat 3]
 2. The cost of one `fmi3DoStep` of the packaged shared library (loaded with dlopen by the Rust
    harness fmu/examples/dostep_bench.rs) against `Slave::do_step` in process.
 
-It builds first: `cargo build --release -p crawler-plant-node`, `scripts/build-fmu.sh` and the
+It builds first: `cargo build --release -p crawler-plant`, `scripts/build-fmu.sh` and the
 harness (release).
 """
 
@@ -29,7 +29,7 @@ TARGET = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
 
 def build(out):
     print("fmu_bench: building crawler-plant, the FMUs and the DoStep harness (release)...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node"], check=True, cwd=ROOT)
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant"], check=True, cwd=ROOT)
     subprocess.run(["bash", "scripts/build-fmu.sh", out], check=True, cwd=ROOT)
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-fmu", "--example", "dostep_bench"],
                    check=True, cwd=ROOT)
@@ -61,7 +61,7 @@ def main():
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as out:
         build(out)
-        fmi2 = os.path.join(out, "crawler_plant.fmu")
+        fmi2 = os.path.join(out, "crawler_physics.fmu")
         fmi3 = os.path.join(out, "crawler_plant_fmi3.fmu")
         times = {"simulate": [], "fmi2": [], "fmi3": []}
         for _ in range(a.repeat):
@@ -84,7 +84,7 @@ def main():
         unpacked = os.path.join(out, "fmi3")
         with zipfile.ZipFile(fmi3) as z:
             z.extractall(unpacked)
-        so = os.path.join(unpacked, "binaries", "x86_64-linux", "crawler_plant.so")
+        so = os.path.join(unpacked, "binaries", "x86_64-linux", "crawler_physics.so")
         harness = os.path.join(TARGET, "release", "examples", "dostep_bench")
         r = json.loads(subprocess.run([harness, so], check=True, capture_output=True, text=True).stdout)
         print()

@@ -51,7 +51,7 @@ def main():
     ap.add_argument("--alpha", type=float, default=1.0)
     a = ap.parse_args()
     print("building the release binaries (cargo build --release) ...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller"],
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller"],
                    check=True, cwd=ROOT)
     paper, improved = predict("paper", a.alpha), predict("improved", a.alpha)
     periodic = simulate("periodic", 1, a.alpha)

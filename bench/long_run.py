@@ -39,8 +39,8 @@ def main():
     ap.add_argument("--keep", action="store_true")
     a = ap.parse_args()
     print("long_run: building plant, controller and bridge (cargo build --release) ...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller",
-                    "-p", "crawler-bridge"], check=True, cwd=ROOT)
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller",
+                    "-p", "crawler-recorder"], check=True, cwd=ROOT)
     work = tempfile.mkdtemp(prefix="crawler-long-")
     run = f"long{os.getpid()}"
     net = ["--run-id", run, "--endpoint", f"unixsock-stream/{work}/run.sock"]
@@ -54,7 +54,7 @@ def main():
              "--t-end", str(a.steps * 1e-3), "--wait-timeout", "120"],
             stdout=subprocess.DEVNULL, stderr=errs["plant"])
         procs["bridge"] = subprocess.Popen(
-            [os.path.join(REL, "crawler-bridge"), "record", *net, "--out", rrd, "--every", str(a.every),
+            [os.path.join(REL, "crawler-recorder"), "record", *net, "--out", rrd, "--every", str(a.every),
              "--no-footer"],  # flat memory: the footer's index grows with the run
             stdout=subprocess.DEVNULL, stderr=errs["bridge"])
         deadline = time.time() + 60

@@ -102,8 +102,8 @@ def main():
     ap.add_argument("--cells", default="256,4096,65536")
     ap.add_argument("--map", action="store_true", help="also measure the cost of a friction map")
     a = ap.parse_args()
-    print("building crawler-plant (cargo build --release -p crawler-plant-node) ...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node"], check=True, cwd=ROOT)
+    print("building crawler-plant (cargo build --release -p crawler-plant) ...", file=sys.stderr)
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant"], check=True, cwd=ROOT)
     print("| N | Rust (cell updates/s) | NumPy (cell updates/s) | Rust / NumPy |")
     print("| ---: | ---: | ---: | ---: |")
     for n in [int(x) for x in a.cells.split(",")]:

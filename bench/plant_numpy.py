@@ -1,6 +1,6 @@
 """The plant's stepping scheme in NumPy, for side-by-side benchmarks.
 
-Same discretisation as plant/src/solver.rs: tensions on half nodes, leapfrog at Courant number 1
+Same discretisation as physics/src/solver.rs: tensions on half nodes, leapfrog at Courant number 1
 with centred viscous term, exact stick by the closed form s = clamp(b/g, -1, 1), the same per-step
 reductions (max tension, max strain, power sums, sums of v, s, stuck, dissipation), stick/slip
 switch detection with the reversal test on the switching nodes, and the conservative

@@ -74,7 +74,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="fewer resolutions")
     a = ap.parse_args()
     print("building the release binaries (cargo build --release) ...", file=sys.stderr)
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant-node", "-p", "crawler-controller"],
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "crawler-plant", "-p", "crawler-controller"],
                    check=True, cwd=ROOT)
     k8, k2 = 8 * math.pi, 2 * math.pi
     cells = [32, 64, 128, 256, 512] if a.quick else [32, 64, 128, 256, 512, 1024, 2048]

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the plant's FMUs into OUT_DIR (default: target/fmu):
-#   crawler_plant.fmu       FMI 2.0 co-simulation, binaries/linux64/crawler_plant.so
-#   crawler_plant_fmi3.fmu  FMI 3.0 co-simulation, binaries/x86_64-linux/crawler_plant.so
+#   crawler_physics.fmu       FMI 2.0 co-simulation, binaries/linux64/crawler_physics.so
+#   crawler_plant_fmi3.fmu  FMI 3.0 co-simulation, binaries/x86_64-linux/crawler_physics.so
 # each with the modelDescription.xml and documentation/index.html that `crawler-fmu files`
 # writes from the defaults the library itself uses (the paper scenario).
 #
@@ -72,12 +72,12 @@ pack() { # version platform file
   local dir="$stage/fmi$1"
   mkdir -p "$dir/binaries/$2"
   "$tool" files --fmi "$1" --out "$dir"
-  cp "$lib" "$dir/binaries/$2/crawler_plant.so"
+  cp "$lib" "$dir/binaries/$2/crawler_physics.so"
   # Written beside the target and renamed when complete: a failed build never leaves a
   # truncated .fmu (nor truncates an existing one).
   (cd "$dir" && python3 -m zipfile -c "$out/.$3.partial" modelDescription.xml binaries documentation)
   mv -f "$out/.$3.partial" "$out/$3"
-  echo "build-fmu: wrote $out/$3 (FMI $1.0, binaries/$2/crawler_plant.so)" >&2
+  echo "build-fmu: wrote $out/$3 (FMI $1.0, binaries/$2/crawler_physics.so)" >&2
 }
-pack 2 linux64 crawler_plant.fmu
+pack 2 linux64 crawler_physics.fmu
 pack 3 x86_64-linux crawler_plant_fmi3.fmu

@@ -22,8 +22,10 @@ fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let ws = root.parent().expect("workspace root");
     let sources = [
-        ws.join("plant/src"),
-        ws.join("controller/src"),
+        ws.join("physics/src"),
+        ws.join("facts/src"),
+        ws.join("models/src"),
+        ws.join("policies/src"),
         ws.join("scenarios"),
         root.join("src/evaluate"),
     ];

@@ -1,6 +1,6 @@
 //! # crawler-cli
 //!
-//! What the soft-crawler programs (`crawler-plant`, `crawler-controller`, `crawler-bridge`,
+//! What the soft-crawler programs (`crawler-plant`, `crawler-controller`, `crawler-recorder`,
 //! `crawler`) share on the command line, kept out of the libraries:
 //!
 //! - [`scenario_args`]: the scenario file and the common overrides (`--eps --n-f --f0 --k
@@ -18,6 +18,6 @@ pub mod progress;
 pub mod scenario_args;
 pub mod stdout;
 
-pub use crawler_plant::error::number;
+pub use crawler_physics::error::number;
 pub use exit::Exit;
 pub use scenario_args::ScenarioArgs;

@@ -1,6 +1,7 @@
 //! The progress bar of long runs.
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+pub use indicatif::ProgressBar;
+use indicatif::{ProgressDrawTarget, ProgressStyle};
 
 /// A bar of `total` steps on stderr, labelled `what` (e.g. "simulating"). It is drawn only when
 /// stderr is a terminal, so logs and pipes see nothing of it.

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use crawler_plant::scenario::{Overrides, Scenario, ScenarioError};
+use crawler_physics::scenario::{Overrides, Scenario, ScenarioError};
 
 /// Scenario file and the common overrides.
 #[derive(Args, Debug, Clone, Default)]
@@ -56,6 +56,36 @@ impl ScenarioArgs {
             t_end: self.t_end,
             end_run: self.task.then_some(true),
         }
+    }
+
+    /// The flags as a command line that gives these flags again (for a program that starts
+    /// another with the same scenario); numbers in full precision.
+    pub fn to_args(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if let Some(s) = &self.scenario {
+            out.extend(["--scenario".to_string(), s.display().to_string()]);
+        }
+        let numbers = [
+            ("--eps", self.eps),
+            ("--n-f", self.n_f),
+            ("--f0", self.f0),
+            ("--k", self.k),
+            ("--omega", self.omega),
+            ("--alpha", self.alpha),
+            ("--t-end", self.t_end),
+        ];
+        for (flag, x) in numbers {
+            if let Some(x) = x {
+                out.extend([flag.to_string(), x.to_string()]);
+            }
+        }
+        if let Some(n) = self.cells {
+            out.extend(["--cells".to_string(), n.to_string()]);
+        }
+        if self.task {
+            out.push("--task".to_string());
+        }
+        out
     }
 
     /// Loads the scenario with the overrides applied. An invalid value that came from a flag is
@@ -129,11 +159,35 @@ mod tests {
     }
 
     #[test]
+    fn the_flags_given_again_parse_back_to_the_same_flags() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct P {
+            #[command(flatten)]
+            s: ScenarioArgs,
+        }
+        let a = ScenarioArgs {
+            scenario: Some("x.toml".into()),
+            eps: Some(0.1 + 0.2),
+            alpha: Some(-1e-300),
+            cells: Some(-3),
+            t_end: Some(7.0),
+            task: true,
+            ..Default::default()
+        };
+        let args = std::iter::once("p".to_string()).chain(a.to_args());
+        let back = P::try_parse_from(args).unwrap().s;
+        assert_eq!(back.to_args(), a.to_args());
+        assert_eq!(back.eps.unwrap().to_bits(), (0.1f64 + 0.2).to_bits());
+        assert_eq!((back.cells, back.task), (Some(-3), true));
+    }
+
+    #[test]
     fn a_bad_value_from_the_file_keeps_its_key() {
         let dir = std::env::temp_dir().join(format!("crawler-cli-test-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("bad.toml");
-        let text = crawler_plant::scenario::PAPER_TOML.replace("eps = 0.1", "eps = -0.5");
+        let text = crawler_physics::scenario::PAPER_TOML.replace("eps = 0.1", "eps = -0.5");
         std::fs::write(&path, text).unwrap();
         // --f0 is given but valid: the error is about the file's eps, named by its key only
         let e = error(ScenarioArgs {

@@ -1,10 +1,10 @@
 //! The FMU's `fmi3DoStep` cost per macro step against the in-process `Slave::do_step`, side by
 //! side in one run: the shared library is loaded with `dlopen` from a packaged `.fmu`'s
-//! `binaries/x86_64-linux/crawler_plant.so` (or any path given), as an importer loads it.
+//! `binaries/x86_64-linux/crawler_physics.so` (or any path given), as an importer loads it.
 //!
 //! ```sh
 //! scripts/build-fmu.sh && unzip -o -d /tmp/fmu3 target/fmu/crawler_plant_fmi3.fmu
-//! cargo run --release -p crawler-fmu --example dostep_bench -- /tmp/fmu3/binaries/x86_64-linux/crawler_plant.so
+//! cargo run --release -p crawler-fmu --example dostep_bench -- /tmp/fmu3/binaries/x86_64-linux/crawler_physics.so
 //! ```
 //!
 //! Each round runs `STEPS` macro steps on a fresh instance of each, alternating which goes first;
@@ -13,8 +13,8 @@
 use std::ffi::{c_char, c_int, c_void, CString};
 use std::time::Instant;
 
-use crawler_plant::model_description::instantiation_token;
-use crawler_plant::slave::StepStatus;
+use crawler_physics::model_description::instantiation_token;
+use crawler_physics::slave::StepStatus;
 
 const STEPS: u32 = 2000;
 const ROUNDS: usize = 7;

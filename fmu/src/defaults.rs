@@ -3,9 +3,9 @@
 //! The model description written into the `.fmu` ([`model_description`]) and the instances the
 //! library creates ([`slave`]) both come from [`scenario`], so their start values agree.
 
-use crawler_plant::model_description::ModelDescription;
-use crawler_plant::scenario::Scenario;
-use crawler_plant::slave::{Slave, SlaveError};
+use crawler_physics::model_description::ModelDescription;
+use crawler_physics::scenario::Scenario;
+use crawler_physics::slave::{Slave, SlaveError};
 
 /// The scenario whose parameters and wave are the FMU's defaults (`scenarios/paper.toml`,
 /// embedded in the library).

@@ -1,6 +1,6 @@
 //! `documentation/index.html` of the FMUs, generated from the same model description.
 
-use crawler_plant::model_description::{
+use crawler_physics::model_description::{
     Causality, ModelDescription, Start, VarType, FMI2_ARRAY_STRIDE,
 };
 
@@ -11,7 +11,7 @@ fn escape(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-fn start_text(v: &crawler_plant::model_description::Variable) -> String {
+fn start_text(v: &crawler_physics::model_description::Variable) -> String {
     match &v.start {
         None => String::new(),
         Some(Start::Float(x)) => format!("{x:e}"),
@@ -83,10 +83,10 @@ pub fn index_html(md: &ModelDescription, version: u8) -> String {
     format!(
         r#"<!DOCTYPE html>
 <html lang="en">
-<head><meta charset="utf-8"><title>crawler_plant: soft-crawler plant (FMI {version}.0 co-simulation)</title>
+<head><meta charset="utf-8"><title>crawler_physics: soft-crawler plant (FMI {version}.0 co-simulation)</title>
 <style>body{{font-family:sans-serif;max-width:70em;margin:2em auto;line-height:1.4}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 6px;vertical-align:top}}code{{font-size:90%}}</style></head>
 <body>
-<h1>crawler_plant: soft peristaltic crawler in a pipe</h1>
+<h1>crawler_physics: soft peristaltic crawler in a pipe</h1>
 <p>{description}. Finite differences of <code>rho u_tt = A_c E u_xx + (A_m f)_x - c_v u_t - eps c_d (s - n_F)</code>,
 <code>s</code> in Sgn(u_t) (set-valued: true stick at zero speed), solved per node in closed form at every internal step.
 FMI {version}.0 co-simulation; instantiation token / GUID <code>{token}</code>.</p>

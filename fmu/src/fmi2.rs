@@ -11,10 +11,10 @@
 use std::borrow::Cow;
 use std::ffi::{c_char, c_int, c_uint, c_void};
 
-use crawler_plant::model_description::{
+use crawler_physics::model_description::{
     fmi2_element_of, fmi2_element_reference, instantiation_token, vr,
 };
-use crawler_plant::slave::{LifecycleState, Slave, StepStatus};
+use crawler_physics::slave::{LifecycleState, Slave, StepStatus};
 
 use crate::instance::{
     c_string, category, cpu_refusal, free_instance, free_saved_state, guard, log_to, saved_state,
@@ -201,7 +201,7 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
     }))
 }
 
-fn report(i: &Instance, call: &str, r: Result<(), crawler_plant::slave::SlaveError>) -> Status {
+fn report(i: &Instance, call: &str, r: Result<(), crawler_physics::slave::SlaveError>) -> Status {
     match r {
         Ok(()) => Status::Ok,
         Err(e) => i.error(&format!("{call}: {e}")),

@@ -9,8 +9,8 @@
 
 use std::ffi::{c_char, c_int, c_void};
 
-use crawler_plant::model_description::{instantiation_token, is_array, variable_name, VarType};
-use crawler_plant::slave::{LifecycleState, Slave, StepStatus};
+use crawler_physics::model_description::{instantiation_token, is_array, variable_name, VarType};
+use crawler_physics::slave::{LifecycleState, Slave, StepStatus};
 
 use crate::instance::{
     c_string, category, cpu_refusal, free_instance, free_saved_state, guard, log_to, saved_state,
@@ -202,7 +202,7 @@ pub unsafe extern "C" fn fmi3FreeInstance(instance: Fmi3Instance) {
     free_instance(instance)
 }
 
-fn report(i: &Instance, call: &str, r: Result<(), crawler_plant::slave::SlaveError>) -> Status {
+fn report(i: &Instance, call: &str, r: Result<(), crawler_physics::slave::SlaveError>) -> Status {
     match r {
         Ok(()) => Status::Ok,
         Err(e) => i.error(&format!("{call}: {e}")),

@@ -4,8 +4,8 @@
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use crawler_plant::plant::PlantState;
-use crawler_plant::slave::Slave;
+use crawler_physics::plant::PlantState;
+use crawler_physics::slave::Slave;
 
 /// FMI status codes, the same numbers in FMI 2.0 (`fmi2Status`) and FMI 3.0 (`fmi3Status`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -346,7 +346,7 @@ pub unsafe fn free_saved_state(p: *mut c_void) {
 
 /// Why this CPU cannot run the library, if it cannot (the build targets x86-64-v3).
 pub fn cpu_refusal() -> Option<String> {
-    crawler_plant::cpu::missing_features().map(|m| {
+    crawler_physics::cpu::missing_features().map(|m| {
         format!("{m} (for an FMU that runs on any x86-64 CPU: scripts/build-fmu.sh --portable)")
     })
 }

@@ -1,6 +1,6 @@
 //! # crawler-fmu
 //!
-//! The soft-crawler plant ([`crawler_plant::slave::Slave`]) as a Functional Mock-up Unit for
+//! The soft-crawler plant ([`crawler_physics::slave::Slave`]) as a Functional Mock-up Unit for
 //! co-simulation, with the C API of both FMI 2.0 ([`fmi2`]) and FMI 3.0 ([`fmi3`]) written by
 //! hand (`#[no_mangle] extern "C"`, types from the standard headers). One shared library holds
 //! both APIs; `scripts/build-fmu.sh` packages it twice, with the FMI 2.0 and the FMI 3.0

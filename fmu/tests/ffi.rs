@@ -8,8 +8,8 @@ use std::sync::Mutex;
 
 use crawler_fmu::fmi2::*;
 use crawler_fmu::fmi3::*;
-use crawler_plant::model_description::{fmi2_element_reference, instantiation_token, vr};
-use crawler_plant::slave::StepStatus;
+use crawler_physics::model_description::{fmi2_element_reference, instantiation_token, vr};
+use crawler_physics::slave::StepStatus;
 
 const OK: c_int = 0;
 const DISCARD: c_int = 2;

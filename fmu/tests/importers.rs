@@ -13,7 +13,7 @@ use std::sync::OnceLock;
 
 use serde_json::Value;
 
-/// Directory holding `crawler_plant.fmu` and `crawler_plant_fmi3.fmu`.
+/// Directory holding `crawler_physics.fmu` and `crawler_plant_fmi3.fmu`.
 fn fmus() -> &'static Path {
     static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
     &DIR.get_or_init(|| {
@@ -69,7 +69,7 @@ fn build_fmu(args: &[&str], target: &Path) -> (i32, String) {
 
 fn fmu(version: u8) -> PathBuf {
     fmus().join(if version == 2 {
-        "crawler_plant.fmu"
+        "crawler_physics.fmu"
     } else {
         "crawler_plant_fmi3.fmu"
     })
@@ -312,15 +312,15 @@ fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
     for n in 0..steps {
         assert_eq!(
             slave.do_step(n as f64 * h, h),
-            crawler_plant::slave::StepStatus::Ok
+            crawler_physics::slave::StepStatus::Ok
         );
     }
     assert_eq!(
         r["digest"].as_str().unwrap(),
-        crawler_plant::simulate::state_digest(slave.plant()),
+        crawler_physics::report::state_digest(slave.plant()),
         "ecos's run differs from the in-process slave"
     );
-    let mean = slave.float64_scalar(crawler_plant::model_description::vr::MEAN_DISPLACEMENT);
+    let mean = slave.float64_scalar(crawler_physics::model_description::vr::MEAN_DISPLACEMENT);
     assert_eq!(
         bits(&r["outputs"]["mean_displacement"]),
         mean.unwrap().to_bits()
@@ -336,7 +336,7 @@ fn example(file: &str, start: &str) -> Option<String> {
     let at = text.find(&format!("```python\n{start}"))?;
     let code = &text[at + "```python\n".len()..];
     let code = &code[..code.find("```").unwrap()];
-    Some(code.replace("target/fmu/crawler_plant.fmu", path_str(&fmu(2))))
+    Some(code.replace("target/fmu/crawler_physics.fmu", path_str(&fmu(2))))
 }
 
 /// Runs Python `code`; its standard output.
@@ -397,7 +397,7 @@ fn the_fmu_doc_fmpy_example_runs_as_shown() {
 
 /// The paper scenario on a nanosecond clock.
 fn paper_on_nanoseconds() -> String {
-    crawler_plant::scenario::PAPER_TOML.replace(
+    crawler_physics::scenario::PAPER_TOML.replace(
         "[numerics]\n",
         "[numerics]\nticks_per_second = 1000000000\n",
     )
@@ -477,7 +477,7 @@ settle = 1.5
 ticks_per_second = 1000000000
 "#;
     let reference = simulate_scenario(text);
-    let s = crawler_plant::scenario::Scenario::from_toml(text, "held-out", &Default::default())
+    let s = crawler_physics::scenario::Scenario::from_toml(text, "held-out", &Default::default())
         .unwrap();
     let (p, w) = (&s.plant, &s.wave);
     assert_eq!(p.numerics.cells, 512);
@@ -568,8 +568,8 @@ fn build_fmu_prebuilt_packages_what_cargo_built_and_refuses_a_missing_or_stale_l
              sys.exit(names != sorted(b.namelist()) or any(a.read(n) != b.read(n) for n in names))",
         ])
         .args([
-            path_str(&built.join("crawler_plant.fmu")),
-            path_str(&out.path().join("crawler_plant.fmu")),
+            path_str(&built.join("crawler_physics.fmu")),
+            path_str(&out.path().join("crawler_physics.fmu")),
         ])
         .status()
         .unwrap();

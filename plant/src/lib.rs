@@ -1,49 +1,32 @@
 //! # crawler-plant
 //!
-//! A finite-difference solver of the soft peristaltic crawler of Gusty et al. (the nonlinear
-//! wave equation `rho u_tt = A_c E u_xx + (A_m f)_x - F(u_t)` on a periodic body) with asymmetric
-//! Coulomb + viscous friction and exact (set-valued) stick, wrapped as an FMI 3.0 style
-//! co-simulation slave.
+//! The plant of [`crawler_physics`] as a node of a co-simulation over zenoh (`crawler-plant run`),
+//! and the pieces of the `crawler-plant` program around the physics library. The roles follow
+//! libcosim's split of a co-simulation:
 //!
-//! - [`solver`]: the kernel (leapfrog + closed-form implicit friction per node).
-//! - [`friction`]: the set-valued friction law and its exact one-step solution.
-//! - [`plant`]: the plant advanced in communication steps, with actuation, metrics and events.
-//! - [`slave`]: the FMI-style lifecycle, value references and state serialization.
-//! - [`scenario`]: TOML scenarios; [`simulate`]: an in-process run under a fixed wave.
-//! - [`framing`]: the framed, checksummed binary format of serialised states.
-//! - [`cpu`]: whether this CPU runs the instructions the build targets (an answer, never an exit).
-//!
-//! Units are SI throughout: m, s, N, Pa, W, J.
-//!
-//! The library knows no network, command line or terminal: it never prints, draws or exits, so
-//! it can be linked into another program (an FMU, a controller). The co-simulation node and the
-//! `crawler-plant` program are the crate `crawler-plant-node` (`plant-node/`).
+//! - [`access`]: the run's credential and zenoh user file, created by the plant and removed at
+//!   its exit;
+//! - [`admission`]: one actuation message decoded and checked for the step the plant waits for,
+//!   rejections counted by cause (pure; no clock, no network);
+//! - [`link`]: the zenoh publishers, subscribers, queryable and liveliness, and the inboxes they
+//!   fill;
+//! - [`runner`]: the lockstep on the plant's fixed-step clock: the plant library's execution loop
+//!   with the joined controller (over an inbox) as its controller and the publisher (to an outbox)
+//!   as its observer (the link, or channels in tests);
+//! - [`wire`]: the plant's report as the protocol's `FinalReport`;
+//! - [`checkpoint`]: a stopped run (plant state, scenario, bookkeeping), resumed bit-identically;
+//! - [`environment`]: the pipe's friction as the plant resolved it, answered to the recorder;
+//! - [`bench`]: cell updates per second of the stepping loop (`crawler-plant bench`);
+//! - [`preflight`]: what a run costs and where it really ends, said before it starts;
+//! - [`cli`]: the `crawler-plant` program (parsing and dispatch).
 
-pub mod convergence;
-pub mod cpu;
-pub mod error;
-pub mod events;
-pub mod framing;
-pub mod friction;
-pub mod metrics;
-pub mod model_description;
-pub mod node_array;
-mod node_friction;
-pub mod pair;
-pub mod params;
-pub mod pipe;
-pub mod plant;
-pub mod scenario;
-pub mod simd;
-pub mod simulate;
-pub mod slave;
-pub mod solver;
-pub mod task;
-pub mod wave;
-
-pub use error::ParamError;
-pub use params::PlantParams;
-pub use plant::Plant;
-pub use scenario::Scenario;
-pub use slave::Slave;
-pub use wave::Wave;
+pub mod access;
+pub mod admission;
+pub mod bench;
+pub mod checkpoint;
+pub mod cli;
+pub mod environment;
+pub mod link;
+pub mod preflight;
+pub mod runner;
+pub mod wire;

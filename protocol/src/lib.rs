@@ -10,7 +10,7 @@
 //! - [`messages::decode`] bounds the size, checks the version and validates every field, so a
 //!   decoded message never carries NaN, an infinite value or an inconsistent size.
 //! - Closed sets of values are enums that travel as their lowercase names: a status's
-//!   [`Role`] and [`ProcessState`], a task's [`TaskOutcome`].
+//!   [`Role`] and [`ProcessState`], a task's [`Outcome`].
 
 /// An enum that travels as its name (`as_str`, `parse`): `Display`, and serde as a lowercase
 /// string, refused by field, value and what is `allowed` when unknown.
@@ -48,7 +48,7 @@ pub use keys::{validate_run_id, Role, RunKeys};
 pub use limits::RunLimits;
 pub use messages::{
     decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Message,
-    Metrics, ModelInfo, ModelPrediction, Prediction, ProcessState, Rejections, ReportWindow,
-    Series, State, Status, TaskOutcome, TaskResult, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,
+    Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
+    ReportWindow, Series, State, Status, TaskResult, WaveMsg, MAX_CELLS, MAX_MESSAGE_BYTES,
     MAX_SCENARIO_NAME_LEN, PROTOCOL_VERSION,
 };

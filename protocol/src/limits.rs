@@ -91,9 +91,10 @@ mod tests {
     use super::*;
     use crate::messages::{encode, EpisodeMsg, Events, Metrics, State, Status};
     use crate::{
-        Actuation, Applied, EpisodeStats, FinalReport, ProcessState, Rejections, ReportWindow,
-        Role, TaskOutcome, TaskResult, WaveMsg, MAX_SCENARIO_NAME_LEN,
+        Actuation, Applied, EpisodeStats, FinalReport, Outcome, ProcessState, Rejections,
+        ReportWindow, Role, TaskResult, WaveMsg, MAX_SCENARIO_NAME_LEN,
     };
+    use crawler_facts::{Metric, MetricValues};
 
     fn id() -> String {
         "x".repeat(MAX_ID_LEN)
@@ -171,13 +172,15 @@ mod tests {
         let big = -1.234_567_890_123_456_7e300;
         let report = FinalReport {
             scenario: "s".repeat(MAX_SCENARIO_NAME_LEN),
-            velocity: big,
-            power: big,
-            mileage: Some(big),
-            max_stress: big,
-            max_strain: big,
-            stuck_fraction: big,
-            mean_friction_selection: big,
+            values: MetricValues::of(&[
+                (Metric::Velocity, big),
+                (Metric::Power, big),
+                (Metric::Mileage, big),
+                (Metric::MaxStress, big),
+                (Metric::MaxStrain, big),
+                (Metric::StuckFraction, big),
+                (Metric::MeanFrictionSelection, big),
+            ]),
             dissipation: big,
             identity_velocity: big,
             momentum_residual: Some(big),
@@ -205,7 +208,7 @@ mod tests {
             t_end: big,
             state_digest: "f".repeat(8),
             task: Some(TaskResult {
-                outcome: TaskOutcome::EnergyExhausted,
+                outcome: Outcome::EnergyExhausted,
                 distance_target: big,
                 distance: big,
                 time_to_distance: Some(big),
@@ -265,14 +268,16 @@ mod tests {
             steady: true,
             start: -1e300,
             end: -1e300,
-            velocity: -1e300,
-            power: -1e300,
-            mileage: Some(-1e300),
-            max_stress: -1e300,
-            max_strain: -1e300,
-            stuck_fraction: -1e300,
-            mean_friction_selection: -1e300,
-            episodes_per_node_per_period: -1e300,
+            values: MetricValues::of(&[
+                (Metric::Velocity, -1e300),
+                (Metric::Power, -1e300),
+                (Metric::Mileage, -1e300),
+                (Metric::MaxStress, -1e300),
+                (Metric::MaxStrain, -1e300),
+                (Metric::StuckFraction, -1e300),
+                (Metric::MeanFrictionSelection, -1e300),
+                (Metric::EpisodesPerNodePerPeriod, -1e300),
+            ]),
         };
         assert!(encode(&m).len() <= RunLimits::metrics());
     }

@@ -16,12 +16,8 @@ pub const PROTOCOL_VERSION: u16 = 2;
 /// Largest payload accepted on any key, bytes (checked before decoding).
 pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
 
-/// Largest number of cells a co-simulation carries, and the one cell limit of the whole project
-/// (the plant library re-exports it as `crawler_plant::params::MAX_CELLS`).
-pub const MAX_CELLS: usize = 1 << 20;
-
-/// Longest identifier or name accepted in a message.
-pub const MAX_ID_LEN: usize = 128;
+use crawler_facts::MetricValues;
+pub use crawler_facts::{Outcome, MAX_CELLS, MAX_ID_LEN, MAX_SCENARIO_NAME_LEN};
 
 /// Longest free text (status messages, model descriptions) accepted, bytes.
 pub const MAX_TEXT_LEN: usize = 1 << 20;
@@ -70,6 +66,13 @@ pub(crate) fn finite(field: &str, x: f64) -> Result<(), ProtocolError> {
     } else {
         Err(ProtocolError::invalid(field, x, "a finite number"))
     }
+}
+
+/// Metric values within their ranges (the metric table's), refused by `prefix.metric`.
+fn metric_values(prefix: &str, values: &MetricValues) -> Result<(), ProtocolError> {
+    values
+        .validate(prefix)
+        .map_err(|e| ProtocolError::invalid(e.field, e.value, e.allowed))
 }
 
 pub(crate) fn finite_all(field: &str, xs: &[f64]) -> Result<(), ProtocolError> {
@@ -132,18 +135,6 @@ fn positive(field: &str, x: f64) -> Result<(), ProtocolError> {
         Ok(())
     } else {
         Err(ProtocolError::invalid(field, x, "a finite number > 0"))
-    }
-}
-
-fn within(field: &str, x: f64, lo: f64, hi: f64) -> Result<(), ProtocolError> {
-    if x.is_finite() && (lo..=hi).contains(&x) {
-        Ok(())
-    } else {
-        Err(ProtocolError::invalid(
-            field,
-            x,
-            format!("a finite number from {lo} to {hi}"),
-        ))
     }
 }
 
@@ -444,22 +435,10 @@ pub struct Metrics {
     pub start: f64,
     /// Block end, s.
     pub end: f64,
-    /// Mean speed V, m/s.
-    pub velocity: f64,
-    /// Input power P, W.
-    pub power: f64,
-    /// Mileage |V|/P, m/J; `None` (nil) when it is not a number (P = 0).
-    pub mileage: Option<f64>,
-    /// sup T / A_c, Pa.
-    pub max_stress: f64,
-    /// max |u_x|.
-    pub max_strain: f64,
-    /// Share of node-time stuck.
-    pub stuck_fraction: f64,
-    /// Mean friction selection <s>.
-    pub mean_friction_selection: f64,
-    /// Episodes per node per period.
-    pub episodes_per_node_per_period: f64,
+    /// The block's metrics, as fields named by the metric table (`velocity`, `power`, ...); nil
+    /// where a value is not a number (the mileage when P = 0).
+    #[serde(flatten)]
+    pub values: MetricValues,
 }
 
 impl Message for Metrics {
@@ -468,26 +447,9 @@ impl Message for Metrics {
         self.v
     }
     fn validate(&self) -> Result<(), ProtocolError> {
-        for (name, x) in [
-            ("start", self.start),
-            ("end", self.end),
-            ("velocity", self.velocity),
-            ("power", self.power),
-            ("max_stress", self.max_stress),
-            ("max_strain", self.max_strain),
-            ("stuck_fraction", self.stuck_fraction),
-            ("mean_friction_selection", self.mean_friction_selection),
-            (
-                "episodes_per_node_per_period",
-                self.episodes_per_node_per_period,
-            ),
-        ] {
-            finite(&format!("metrics.{name}"), x)?;
-        }
-        if let Some(m) = self.mileage {
-            finite("metrics.mileage", m)?;
-        }
-        Ok(())
+        finite("metrics.start", self.start)?;
+        finite("metrics.end", self.end)?;
+        metric_values("metrics", &self.values)
     }
 }
 
@@ -627,53 +589,18 @@ impl Message for Status {
     }
 }
 
-/// How a run did against the scenario's task (travel `D` on the energy `J0` without exceeding
-/// `sigma_max`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum TaskOutcome {
-    /// The centre of mass travelled `D` within the energy budget.
-    Reached,
-    /// The actuator spent the budget before `D` was reached.
-    EnergyExhausted,
-    /// The run ended with neither.
-    TimeUp,
+/// The task's outcome on the wire, in the words of the plant's report, refused by field and value
+/// when unknown.
+fn outcome_named<'de, D: Deserializer<'de>>(d: D) -> Result<Outcome, D::Error> {
+    named(d, "report.task.outcome", Outcome::parse, Outcome::ALLOWED)
 }
-
-impl TaskOutcome {
-    /// Every outcome.
-    pub const ALL: [TaskOutcome; 3] = [
-        TaskOutcome::Reached,
-        TaskOutcome::EnergyExhausted,
-        TaskOutcome::TimeUp,
-    ];
-
-    /// The outcome on the wire, in the words of the plant's report: `"reached"`,
-    /// `"energy exhausted"` or `"time up"`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            TaskOutcome::Reached => "reached",
-            TaskOutcome::EnergyExhausted => "energy exhausted",
-            TaskOutcome::TimeUp => "time up",
-        }
-    }
-
-    /// The outcome named `name`.
-    pub fn parse(name: &str) -> Option<TaskOutcome> {
-        TaskOutcome::ALL.into_iter().find(|o| o.as_str() == name)
-    }
-}
-
-wire_name!(
-    TaskOutcome,
-    "report.task.outcome",
-    "\"reached\", \"energy exhausted\" or \"time up\""
-);
 
 /// The task's result in a [`FinalReport`] (SI units; times from the start of the run).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TaskResult {
     /// How it ended.
-    pub outcome: TaskOutcome,
+    #[serde(deserialize_with = "outcome_named")]
+    pub outcome: Outcome,
     /// The task's distance D, m (> 0).
     pub distance_target: f64,
     /// Distance the centre of mass travelled, m.
@@ -724,15 +651,15 @@ impl TaskResult {
             self.energy_exhausted_at.is_some(),
         );
         let (expected, allowed) = match self.outcome {
-            TaskOutcome::Reached => (
+            Outcome::Reached => (
                 (true, true, false),
                 "time_to_distance and energy_at_distance, and no energy_exhausted_at, when reached",
             ),
-            TaskOutcome::EnergyExhausted => (
+            Outcome::EnergyExhausted => (
                 (false, false, true),
                 "energy_exhausted_at only, when the energy was exhausted",
             ),
-            TaskOutcome::TimeUp => (
+            Outcome::TimeUp => (
                 (false, false, false),
                 "none of time_to_distance, energy_at_distance, energy_exhausted_at at time up",
             ),
@@ -785,31 +712,18 @@ pub struct ReportWindow {
     pub whole_run: bool,
 }
 
-/// Longest [`FinalReport::scenario`], bytes.
-pub const MAX_SCENARIO_NAME_LEN: usize = MAX_ID_LEN;
-
 /// The plant's final report of a finished run, in its `finished` [`Status`]: the metrics of its
 /// window (steady, or run averages: see `window`), the stick-slip statistics, the grid and the
 /// clock, the state digest and the task's result. SI units. The plant library's report converts
-/// into it in one place (`crawler_plant::simulate`).
+/// into it in one place (`crawler_physics::simulate`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FinalReport {
     /// Scenario name (at most [`MAX_SCENARIO_NAME_LEN`] bytes).
     pub scenario: String,
-    /// Mean speed V, m/s.
-    pub velocity: f64,
-    /// Input power P over the body, W.
-    pub power: f64,
-    /// Mileage |V| / P, m/J; `None` when it is not a number (P = 0).
-    pub mileage: Option<f64>,
-    /// sup T / A_c over the window, Pa (>= 0).
-    pub max_stress: f64,
-    /// max |u_x| over the window (>= 0).
-    pub max_strain: f64,
-    /// Share of node-time stuck, 0 to 1.
-    pub stuck_fraction: f64,
-    /// Mean friction selection <s>, stuck points included, -1 to 1.
-    pub mean_friction_selection: f64,
+    /// The window's metrics, as fields named by the metric table (`velocity`, `power`, ...,
+    /// each within its range); nil where a value is not a number (the mileage when P = 0).
+    #[serde(flatten)]
+    pub values: MetricValues,
     /// Power dissipated by friction, W.
     pub dissipation: f64,
     /// V predicted by the identity `eps c_d (n_F - <s>) / c_v`, m/s.
@@ -857,26 +771,13 @@ impl FinalReport {
             ));
         }
         for (name, x) in [
-            ("velocity", self.velocity),
-            ("power", self.power),
             ("dissipation", self.dissipation),
             ("identity_velocity", self.identity_velocity),
             ("t_end", self.t_end),
         ] {
             finite(&format!("report.{name}"), x)?;
         }
-        if let Some(m) = self.mileage {
-            finite("report.mileage", m)?;
-        }
-        non_negative("report.max_stress", self.max_stress)?;
-        non_negative("report.max_strain", self.max_strain)?;
-        within("report.stuck_fraction", self.stuck_fraction, 0.0, 1.0)?;
-        within(
-            "report.mean_friction_selection",
-            self.mean_friction_selection,
-            -1.0,
-            1.0,
-        )?;
+        metric_values("report", &self.values)?;
         if let Some(r) = self.momentum_residual {
             non_negative("report.momentum_residual", r)?;
         }
@@ -950,16 +851,10 @@ impl Series {
 pub struct ModelPrediction {
     /// "paper" or "improved".
     pub model: String,
-    /// V, m/s.
-    pub velocity: Option<f64>,
-    /// P, W.
-    pub power: Option<f64>,
-    /// M, m/J.
-    pub mileage: Option<f64>,
-    /// sigma, Pa.
-    pub max_stress: Option<f64>,
-    /// Stuck fraction.
-    pub stuck_fraction: Option<f64>,
+    /// The predicted metrics, as fields named by the metric table; nil where the model has no
+    /// value.
+    #[serde(flatten)]
+    pub values: MetricValues,
     /// "valid" or why not.
     pub validity: String,
     /// Tail displacement u(0, t), m, when the model gives it.
@@ -1002,17 +897,7 @@ impl Message for Prediction {
         for (i, m) in self.models.iter().enumerate() {
             short(&format!("prediction.models[{i}].model"), &m.model)?;
             text(&format!("prediction.models[{i}].validity"), &m.validity)?;
-            for (name, x) in [
-                ("velocity", m.velocity),
-                ("power", m.power),
-                ("mileage", m.mileage),
-                ("max_stress", m.max_stress),
-                ("stuck_fraction", m.stuck_fraction),
-            ] {
-                if let Some(x) = x {
-                    finite(&format!("prediction.models[{i}].{name}"), x)?;
-                }
-            }
+            metric_values(&format!("prediction.models[{i}]"), &m.values)?;
             if let Some(s) = &m.tail {
                 finite("tail.omega", s.omega)?;
                 finite("tail.drift", s.drift)?;
@@ -1165,6 +1050,7 @@ impl Message for ModelInfo {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crawler_facts::Metric;
 
     fn state(n: usize, applied: Option<Applied>) -> State {
         State {
@@ -1192,17 +1078,19 @@ mod tests {
             steady: false,
             start: 0.0,
             end: 0.1,
-            velocity: 0.0,
-            power: 0.0,
-            mileage: None, // P = 0
-            max_stress: 0.0,
-            max_strain: 0.0,
-            stuck_fraction: 0.0,
-            mean_friction_selection: 0.0,
-            episodes_per_node_per_period: 0.0,
+            // P = 0: no mileage
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.0),
+                (Metric::Power, 0.0),
+                (Metric::MaxStress, 0.0),
+                (Metric::MaxStrain, 0.0),
+                (Metric::StuckFraction, 0.0),
+                (Metric::MeanFrictionSelection, 0.0),
+                (Metric::EpisodesPerNodePerPeriod, 0.0),
+            ]),
         };
         assert_eq!(decode::<Metrics>(&encode(&m)).unwrap(), m);
-        m.mileage = Some(f64::NAN);
+        m.values = m.values.with_raw(Metric::Mileage, Some(f64::NAN));
         let e = decode::<Metrics>(&encode(&m)).unwrap_err().to_string();
         assert!(e.starts_with("invalid metrics.mileage = NaN"), "{e}");
     }
@@ -1303,13 +1191,15 @@ mod tests {
     pub(crate) fn report() -> FinalReport {
         FinalReport {
             scenario: "paper".into(),
-            velocity: 0.049,
-            power: 4.73,
-            mileage: Some(0.0103),
-            max_stress: 36300.0,
-            max_strain: 0.0026,
-            stuck_fraction: 0.04,
-            mean_friction_selection: -0.5,
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.049),
+                (Metric::Power, 4.73),
+                (Metric::Mileage, 0.0103),
+                (Metric::MaxStress, 36300.0),
+                (Metric::MaxStrain, 0.0026),
+                (Metric::StuckFraction, 0.04),
+                (Metric::MeanFrictionSelection, -0.5),
+            ]),
             dissipation: 4.73,
             identity_velocity: 0.049,
             momentum_residual: Some(1e-15),
@@ -1337,7 +1227,7 @@ mod tests {
             t_end: 8.0,
             state_digest: "4832f1ec".into(),
             task: Some(TaskResult {
-                outcome: TaskOutcome::Reached,
+                outcome: Outcome::Reached,
                 distance_target: 1.0,
                 distance: 1.0,
                 time_to_distance: Some(7.5),
@@ -1371,18 +1261,18 @@ mod tests {
         round_trip(&finished(Some(report())));
         round_trip(&finished(None));
         let mut r = report();
-        r.mileage = None; // P = 0
+        r.values.set(Metric::Mileage, None); // P = 0
         r.momentum_residual = None;
         r.cells_per_wavelength = None;
         r.task = None;
         round_trip(&finished(Some(r)));
-        for outcome in [TaskOutcome::EnergyExhausted, TaskOutcome::TimeUp] {
+        for outcome in [Outcome::EnergyExhausted, Outcome::TimeUp] {
             let mut r = report();
             let t = r.task.as_mut().unwrap();
             t.outcome = outcome;
             t.time_to_distance = None;
             t.energy_at_distance = None;
-            t.energy_exhausted_at = (outcome == TaskOutcome::EnergyExhausted).then_some(6.5);
+            t.energy_exhausted_at = (outcome == Outcome::EnergyExhausted).then_some(6.5);
             round_trip(&finished(Some(r)));
         }
     }
@@ -1392,22 +1282,31 @@ mod tests {
         type Edit = fn(&mut FinalReport);
         let cases: [(Edit, &str); 22] = [
             (
-                |r| r.velocity = f64::NAN,
+                |r| r.values = r.values.with_raw(Metric::Velocity, Some(f64::NAN)),
                 "invalid report.velocity = NaN: allowed a finite number",
             ),
-            (|r| r.power = f64::INFINITY, "report.power = inf"),
-            (|r| r.mileage = Some(f64::NAN), "report.mileage = NaN"),
             (
-                |r| r.max_stress = -1.0,
+                |r| r.values = r.values.with_raw(Metric::Power, Some(f64::INFINITY)),
+                "report.power = inf",
+            ),
+            (
+                |r| r.values = r.values.with_raw(Metric::Mileage, Some(f64::NAN)),
+                "report.mileage = NaN",
+            ),
+            (
+                |r| r.values.set(Metric::MaxStress, Some(-1.0)),
                 "invalid report.max_stress = -1: allowed a finite number >= 0",
             ),
-            (|r| r.max_strain = f64::NAN, "report.max_strain = NaN"),
             (
-                |r| r.stuck_fraction = 1.5,
+                |r| r.values = r.values.with_raw(Metric::MaxStrain, Some(f64::NAN)),
+                "report.max_strain = NaN",
+            ),
+            (
+                |r| r.values.set(Metric::StuckFraction, Some(1.5)),
                 "invalid report.stuck_fraction = 1.5: allowed a finite number from 0 to 1",
             ),
             (
-                |r| r.mean_friction_selection = -1.01,
+                |r| r.values.set(Metric::MeanFrictionSelection, Some(-1.01)),
                 "report.mean_friction_selection = -1.01",
             ),
             (
@@ -1458,7 +1357,7 @@ mod tests {
                 "invalid report.task = outcome \"reached\"",
             ),
             (
-                |r| r.task.as_mut().unwrap().outcome = TaskOutcome::TimeUp,
+                |r| r.task.as_mut().unwrap().outcome = Outcome::TimeUp,
                 "allowed none of time_to_distance",
             ),
         ];
@@ -1508,8 +1407,8 @@ mod tests {
         for state in ProcessState::ALL {
             assert_eq!(ProcessState::parse(state.as_str()), Some(state));
         }
-        for o in TaskOutcome::ALL {
-            assert_eq!(TaskOutcome::parse(&o.to_string()), Some(o));
+        for o in Outcome::ALL {
+            assert_eq!(Outcome::parse(&o.to_string()), Some(o));
         }
         assert!(ProcessState::Finished.is_terminal() && !ProcessState::Running.is_terminal());
         // anything else is refused, naming the field, the value and what is allowed

@@ -2,6 +2,7 @@
 //! messages never panic, never allocate without bound, and whatever decodes is valid and survives
 //! encoding and decoding again unchanged. Valid messages round-trip to equal values and bytes.
 
+use crawler_facts::{Metric, MetricValues};
 use proptest::prelude::*;
 
 use crawler_protocol::*;
@@ -76,14 +77,16 @@ fn samples() -> Samples {
         steady: true,
         start: 1.0,
         end: 1.2,
-        velocity: 0.05,
-        power: 0.1,
-        mileage: Some(0.5),
-        max_stress: 1000.0,
-        max_strain: 0.01,
-        stuck_fraction: 0.2,
-        mean_friction_selection: 0.1,
-        episodes_per_node_per_period: 1.0,
+        values: MetricValues::of(&[
+            (Metric::Velocity, 0.05),
+            (Metric::Power, 0.1),
+            (Metric::Mileage, 0.5),
+            (Metric::MaxStress, 1000.0),
+            (Metric::MaxStrain, 0.01),
+            (Metric::StuckFraction, 0.2),
+            (Metric::MeanFrictionSelection, 0.1),
+            (Metric::EpisodesPerNodePerPeriod, 1.0),
+        ]),
     };
     let status = Status {
         v: PROTOCOL_VERSION,
@@ -95,13 +98,14 @@ fn samples() -> Samples {
         rejected: Rejections::default(),
         report: Some(FinalReport {
             scenario: "paper".into(),
-            velocity: 0.05,
-            power: 0.1,
-            mileage: None,
-            max_stress: 1000.0,
-            max_strain: 0.01,
-            stuck_fraction: 0.2,
-            mean_friction_selection: 0.1,
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.05),
+                (Metric::Power, 0.1),
+                (Metric::MaxStress, 1000.0),
+                (Metric::MaxStrain, 0.01),
+                (Metric::StuckFraction, 0.2),
+                (Metric::MeanFrictionSelection, 0.1),
+            ]),
             dissipation: 0.1,
             identity_velocity: 0.05,
             momentum_residual: Some(1e-15),
@@ -129,7 +133,7 @@ fn samples() -> Samples {
             t_end: 1.0,
             state_digest: "0123abcd".into(),
             task: Some(TaskResult {
-                outcome: TaskOutcome::EnergyExhausted,
+                outcome: Outcome::EnergyExhausted,
                 distance_target: 1.0,
                 distance: 0.2,
                 time_to_distance: None,
@@ -152,11 +156,12 @@ fn samples() -> Samples {
         wave,
         models: vec![ModelPrediction {
             model: "paper".into(),
-            velocity: Some(0.04),
-            power: Some(0.1),
-            mileage: None,
-            max_stress: Some(1.0),
-            stuck_fraction: Some(0.0),
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.04),
+                (Metric::Power, 0.1),
+                (Metric::MaxStress, 1.0),
+                (Metric::StuckFraction, 0.0),
+            ]),
             validity: "valid".into(),
             tail: Some(Series {
                 omega: 37.0,

@@ -4,10 +4,11 @@
 //! `PRINT_WIRE_EXAMPLES=1 cargo test --release -p crawler-protocol --test wire_examples -- --nocapture`
 //! prints the dumps (to refresh the document after a deliberate change of the protocol).
 
+use crawler_facts::{Metric, MetricValues};
 use crawler_protocol::{
     decode, encode, Actuation, Applied, EpisodeMsg, EpisodeStats, Events, FinalReport, Message,
-    Metrics, ModelInfo, ModelPrediction, Prediction, ProcessState, Rejections, ReportWindow, Role,
-    Series, State, Status, TaskOutcome, TaskResult, WaveMsg, PROTOCOL_VERSION,
+    Metrics, ModelInfo, ModelPrediction, Outcome, Prediction, ProcessState, Rejections,
+    ReportWindow, Role, Series, State, Status, TaskResult, WaveMsg, PROTOCOL_VERSION,
 };
 
 const V: u16 = PROTOCOL_VERSION;
@@ -95,14 +96,16 @@ fn metrics() -> Metrics {
         steady: true,
         start: 4.987,
         end: 5.071,
-        velocity: 0.049,
-        power: 4.73,
-        mileage: Some(0.0103),
-        max_stress: 36300.0,
-        max_strain: 0.0026,
-        stuck_fraction: 0.0,
-        mean_friction_selection: -0.5,
-        episodes_per_node_per_period: 0.0,
+        values: MetricValues::of(&[
+            (Metric::Velocity, 0.049),
+            (Metric::Power, 4.73),
+            (Metric::Mileage, 0.0103),
+            (Metric::MaxStress, 36300.0),
+            (Metric::MaxStrain, 0.0026),
+            (Metric::StuckFraction, 0.0),
+            (Metric::MeanFrictionSelection, -0.5),
+            (Metric::EpisodesPerNodePerPeriod, 0.0),
+        ]),
     }
 }
 
@@ -132,13 +135,15 @@ fn status_finished() -> Status {
         rejected: Rejections::default(),
         report: Some(FinalReport {
             scenario: "demo".into(),
-            velocity: 0.049,
-            power: 4.73,
-            mileage: Some(0.0103),
-            max_stress: 36300.0,
-            max_strain: 0.0026,
-            stuck_fraction: 0.0,
-            mean_friction_selection: -0.5,
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.049),
+                (Metric::Power, 4.73),
+                (Metric::Mileage, 0.0103),
+                (Metric::MaxStress, 36300.0),
+                (Metric::MaxStrain, 0.0026),
+                (Metric::StuckFraction, 0.0),
+                (Metric::MeanFrictionSelection, -0.5),
+            ]),
             dissipation: 4.73,
             identity_velocity: 0.049,
             momentum_residual: None,
@@ -166,7 +171,7 @@ fn status_finished() -> Status {
             t_end: 0.01,
             state_digest: "4832f1ec".into(),
             task: Some(TaskResult {
-                outcome: TaskOutcome::EnergyExhausted,
+                outcome: Outcome::EnergyExhausted,
                 distance_target: 1.0,
                 distance: 0.0005,
                 time_to_distance: None,
@@ -193,11 +198,13 @@ fn prediction() -> Prediction {
         wave: wave(),
         models: vec![ModelPrediction {
             model: "improved".into(),
-            velocity: Some(0.049),
-            power: Some(4.73),
-            mileage: Some(0.0103),
-            max_stress: Some(36300.0),
-            stuck_fraction: Some(0.0),
+            values: MetricValues::of(&[
+                (Metric::Velocity, 0.049),
+                (Metric::Power, 4.73),
+                (Metric::Mileage, 0.0103),
+                (Metric::MaxStress, 36300.0),
+                (Metric::StuckFraction, 0.0),
+            ]),
             validity: "valid".into(),
             tail: Some(Series {
                 omega: 74.0,

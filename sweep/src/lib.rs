@@ -6,20 +6,20 @@
 //! scenario's own parser and identified by a hash of everything that determines its results, so
 //! interrupted sweeps resume and overlapping plans share results through the [`store`]. Points
 //! run on all local cores ([`local`]) or as a Slurm job array ([`slurm`]); the results are one
-//! Parquet file per sweep ([`table`]), and plans with `[figures]` get heat maps ([`maps`],
-//! [`figures`], [`contour`]) and a Rerun recording ([`recording`]).
+//! Parquet file per sweep ([`table`]); for plans with `[figures]` the library computes the maps
+//! ([`maps`]) and a program draws them ([`run::MapOutputs`]: the heat maps of `crawler-figures`,
+//! the recording of `crawler sweep`).
+//!
+//! No command line, network or drawing: `crawler sweep` is the program.
 //!
 //! Units are SI throughout.
 
-pub mod contour;
 pub mod evaluate;
-pub mod figures;
 pub mod local;
 pub mod maps;
 pub mod plan;
 pub mod point;
 pub mod record;
-pub mod recording;
 pub mod run;
 pub mod slurm;
 pub mod store;

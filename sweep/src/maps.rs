@@ -4,13 +4,20 @@
 
 use std::collections::BTreeMap;
 
+use crawler_facts::Metric;
+
 use crate::plan::{MapFigures, Plan};
 use crate::point::Point;
 use crate::record::Record;
 use crate::table::{conv_error, point_error};
 
 /// The metrics a map shows (those of them the plan keeps).
-pub const MAP_METRICS: [&str; 4] = ["velocity", "power", "mileage", "max_stress"];
+pub const MAP_METRICS: [Metric; 4] = [
+    Metric::Velocity,
+    Metric::Power,
+    Metric::Mileage,
+    Metric::MaxStress,
+];
 
 /// A numeric axis of the map.
 #[derive(Debug, Clone)]
@@ -92,9 +99,9 @@ pub struct Maps {
     /// The models compared.
     pub models: Vec<String>,
     /// The metrics compared.
-    pub metrics: Vec<String>,
+    pub metrics: Vec<Metric>,
     /// (model, metric) -> panel (row-major: row * ncols + col) -> model error (relative).
-    pub errors: BTreeMap<(String, String), Vec<Grid>>,
+    pub errors: BTreeMap<(String, Metric), Vec<Grid>>,
     /// model -> panel -> 1 where the model's formulas apply, 0 where not.
     pub valid: BTreeMap<String, Vec<Grid>>,
     /// panel -> the plant's stuck fraction.
@@ -132,7 +139,7 @@ impl Maps {
                         }
                         self.metrics
                             .iter()
-                            .filter_map(|m| self.errors[&(model.to_string(), m.clone())][panel][i])
+                            .filter_map(|&m| self.errors[&(model.to_string(), m)][panel][i])
                             .map(f64::abs)
                             .reduce(f64::max)
                     })
@@ -190,19 +197,18 @@ impl Maps {
             }
         }
         let models = plan.evaluate.models.clone();
-        let metrics: Vec<String> = MAP_METRICS
-            .iter()
-            .filter(|m| plan.metrics.iter().any(|x| x == *m))
-            .map(|m| m.to_string())
+        let metrics: Vec<Metric> = MAP_METRICS
+            .into_iter()
+            .filter(|m| plan.metrics.contains(m))
             .collect();
         let (nx, ny) = (x.values.len(), y.values.len());
         let nr = rows.as_ref().map_or(1, |a| a.values.len());
         let nc = columns.as_ref().map_or(1, |a| a.values.len());
         let empty = || vec![vec![None; nx * ny]; nr * nc];
-        let mut errors: BTreeMap<(String, String), Vec<Grid>> = BTreeMap::new();
+        let mut errors: BTreeMap<(String, Metric), Vec<Grid>> = BTreeMap::new();
         for m in &models {
-            for k in &metrics {
-                errors.insert((m.clone(), k.clone()), empty());
+            for &k in &metrics {
+                errors.insert((m.clone(), k), empty());
             }
         }
         let mut valid: BTreeMap<String, Vec<Grid>> =
@@ -229,19 +235,19 @@ impl Maps {
             let panel = ir * nc + ic;
             let cell = iy * nx + ix;
             let Some(plant) = &r.plant else { continue };
-            stuck[panel][cell] = plant.run.metrics.stuck_fraction;
+            stuck[panel][cell] = plant.run.metrics.get(Metric::StuckFraction);
             // the largest estimate among the metrics that have one (a body at rest has no mileage)
             convergence[panel][cell] = metrics
                 .iter()
-                .filter_map(|m| conv_error(plant, m, p))
+                .filter_map(|&m| conv_error(plant, m, p))
                 .reduce(f64::max);
             for (mi, model) in models.iter().enumerate() {
                 let Some(mr) = r.models.get(mi) else { continue };
                 valid.get_mut(model).expect("a model")[panel][cell] =
                     Some(if mr.valid { 1.0 } else { 0.0 });
-                for k in &metrics {
+                for &k in &metrics {
                     let e = point_error(k, p, &mr.metrics, &plant.run.metrics);
-                    errors.get_mut(&(model.clone(), k.clone())).expect("a pair")[panel][cell] = e;
+                    errors.get_mut(&(model.clone(), k)).expect("a pair")[panel][cell] = e;
                 }
             }
         }

@@ -9,8 +9,8 @@
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-use crawler_controller::controller::PolicyOptions;
-use crawler_controller::optimizer::ModelChoice;
+use crawler_facts::Metric;
+use crawler_policies::Params;
 
 /// Why a plan could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -44,18 +44,6 @@ pub enum PlanError {
         allowed: String,
     },
 }
-
-/// The metrics a model or the plant reports; `metrics` in a plan picks among them.
-pub const METRICS: [&str; 8] = [
-    "velocity",
-    "power",
-    "mileage",
-    "max_stress",
-    "max_strain",
-    "stuck_fraction",
-    "mean_friction_selection",
-    "episodes_per_node_per_period",
-];
 
 /// The models a plan may evaluate.
 pub const MODELS: [&str; 2] = ["paper", "improved"];
@@ -118,17 +106,8 @@ fn yes() -> bool {
 #[serde(deny_unknown_fields)]
 struct RawPolicy {
     name: String,
-    f0: Option<f64>,
-    k: Option<f64>,
-    omega: Option<f64>,
-    alpha: Option<f64>,
     #[serde(default)]
-    sweep: Vec<f64>,
-    dwell: Option<f64>,
-    model: Option<String>,
-    grid: Option<i64>,
-    certify: Option<bool>,
-    margin: Option<f64>,
+    params: toml::Table,
 }
 
 /// One axis: one or more scenario keys that change together, and their values.
@@ -140,51 +119,42 @@ pub struct Axis {
     pub values: Vec<Vec<toml::Value>>,
 }
 
-/// A co-simulated policy, evaluated in process (bit-identical to the co-simulation).
+/// A co-simulated policy, evaluated in process (bit-identical to the co-simulation): a
+/// registered policy and its parameters (`KEY=VALUE`, as `--param` takes them). The wave it
+/// starts from is the point's (`actuation.*` keys).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PolicySpec {
     /// Registered policy name (`crawler-controller policies`).
     pub name: String,
-    /// Amplitude, N.
-    pub f0: Option<f64>,
-    /// Wave number, rad/m.
-    pub k: Option<f64>,
-    /// Angular frequency, rad/s.
-    pub omega: Option<f64>,
-    /// omega / omega_n.
-    pub alpha: Option<f64>,
-    /// `sweep` policy: alpha values.
-    pub sweep: Vec<f64>,
-    /// `sweep` policy: seconds per value.
-    pub dwell: Option<f64>,
-    /// `optimal` policy: `paper` or `improved`.
-    pub model: Option<String>,
-    /// `optimal` policy: grid points per axis.
-    pub grid: Option<usize>,
-    /// `optimal` policy: certify on the plant first.
-    pub certify: bool,
-    /// `optimal` policy: certification margin.
-    pub margin: f64,
+    /// Its parameters, `KEY=VALUE`.
+    pub params: Vec<String>,
 }
 
 impl PolicySpec {
-    /// The controller options of this spec.
-    pub fn options(&self) -> PolicyOptions {
-        PolicyOptions {
-            f0: self.f0,
-            k: self.k,
-            omega: self.omega,
-            alpha: self.alpha,
-            sweep: self.sweep.clone(),
-            dwell: self.dwell,
-            model: self
-                .model
-                .as_deref()
-                .map(|m| ModelChoice::parse(m).expect("validated when the plan was loaded")),
-            grid: self.grid,
-            certify: self.certify,
-            margin: self.margin,
-        }
+    /// The policy's parameters.
+    pub fn params(&self) -> Params {
+        Params::parse(&self.params).expect("validated when the plan was loaded")
+    }
+}
+
+/// A plan's policy parameter as `--param` takes it: numbers in full precision, lists of
+/// numbers separated by commas.
+fn param_value(key: &str, v: &toml::Value) -> Result<String, String> {
+    let number = |x: &toml::Value| match x {
+        toml::Value::Integer(i) => Some(i.to_string()),
+        toml::Value::Float(f) => Some(f.to_string()),
+        _ => None,
+    };
+    match v {
+        toml::Value::String(s) => Ok(s.clone()),
+        toml::Value::Boolean(b) => Ok(b.to_string()),
+        toml::Value::Array(xs) => xs
+            .iter()
+            .map(number)
+            .collect::<Option<Vec<_>>>()
+            .map(|xs| xs.join(","))
+            .ok_or_else(|| format!("evaluate.policy.params.{key}: a list of numbers")),
+        other => number(other).ok_or_else(|| format!("evaluate.policy.params.{key}")),
     }
 }
 
@@ -235,17 +205,17 @@ pub struct Plan {
     pub axes: Vec<Axis>,
     /// What to evaluate.
     pub evaluate: Evaluate,
-    /// The metrics kept in the results.
-    pub metrics: Vec<String>,
+    /// The metrics kept in the results, in the metric table's order.
+    pub metrics: Vec<Metric>,
     /// Figures to draw, if any.
     pub figures: Option<MapFigures>,
 }
 
 /// A plan or scenario file's text, read to at most
-/// [`MAX_SCENARIO_BYTES`](crawler_plant::scenario::MAX_SCENARIO_BYTES) (a device or a file of
+/// [`MAX_SCENARIO_BYTES`](crawler_physics::scenario::MAX_SCENARIO_BYTES) (a device or a file of
 /// unbounded length is refused, not read to the end).
 fn read_text(path: &Path) -> std::io::Result<String> {
-    crawler_plant::framing::read_text_at_most(path, crawler_plant::scenario::MAX_SCENARIO_BYTES)
+    crawler_physics::framing::read_text_at_most(path, crawler_physics::scenario::MAX_SCENARIO_BYTES)
 }
 
 impl Plan {
@@ -300,7 +270,7 @@ impl Plan {
                 (text, path.display().to_string())
             }
             None => (
-                crawler_plant::scenario::PAPER_TOML.to_string(),
+                crawler_physics::scenario::PAPER_TOML.to_string(),
                 "<embedded paper.toml>".to_string(),
             ),
         };
@@ -445,68 +415,32 @@ impl Plan {
         let policy = match &e.policy {
             None => None,
             Some(p) => {
-                let known: Vec<&str> = crawler_controller::policies::REGISTRY
-                    .iter()
-                    .map(|(n, _, _)| *n)
-                    .collect();
-                if !known.contains(&p.name.as_str()) {
-                    return Err(bad(
-                        "evaluate.policy.name",
-                        &p.name,
-                        &format!("one of {known:?}"),
-                    ));
+                let mut params = Vec::new();
+                for (k, v) in &p.params {
+                    let value = param_value(k, v).map_err(|allowed| {
+                        bad(&format!("evaluate.policy.params.{k}"), v, &allowed)
+                    })?;
+                    params.push(format!("{k}={value}"));
                 }
-                if let Some(m) = &p.model {
-                    ModelChoice::parse(m).map_err(|why| bad("evaluate.policy.model", m, &why))?;
-                }
-                let grid = match p.grid {
-                    None => None,
-                    Some(g) if (2..=4096).contains(&g) => Some(g as usize),
-                    Some(g) => return Err(bad("evaluate.policy.grid", &g, "2 <= grid <= 4096")),
-                };
-                let margin = p.margin.unwrap_or(PolicyOptions::default().margin);
-                if !(margin.is_finite() && (0.0..0.5).contains(&margin)) {
-                    return Err(bad("evaluate.policy.margin", &margin, "0 <= margin < 0.5"));
-                }
-                for (f, v) in [
-                    ("f0", p.f0),
-                    ("k", p.k),
-                    ("omega", p.omega),
-                    ("alpha", p.alpha),
-                    ("dwell", p.dwell),
-                ] {
-                    if let Some(x) = v {
-                        if !(x.is_finite() && (x > 0.0 || (f == "f0" && x == 0.0))) {
-                            return Err(bad(
-                                &format!("evaluate.policy.{f}"),
-                                &x,
-                                "a finite number > 0 (f0 >= 0)",
-                            ));
-                        }
-                    }
-                }
-                if p.omega.is_some() && p.alpha.is_some() {
-                    return Err(bad(
-                        "evaluate.policy",
-                        &"omega and alpha",
-                        "at most one of them",
-                    ));
-                }
-                if let Some(x) = p.sweep.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
-                    return Err(bad("evaluate.policy.sweep", x, "finite alpha values > 0"));
-                }
+                let parsed = Params::parse(&params).map_err(|e| {
+                    bad(
+                        "evaluate.policy.params",
+                        &format!("{params:?}"),
+                        &e.to_string(),
+                    )
+                })?;
+                crawler_policies::lookup(&p.name)
+                    .map_err(|e| bad("evaluate.policy.name", &p.name, &e.to_string()))?;
+                crawler_policies::check(&p.name, &parsed).map_err(|e| {
+                    bad(
+                        "evaluate.policy.params",
+                        &format!("{params:?}"),
+                        &e.to_string(),
+                    )
+                })?;
                 Some(PolicySpec {
                     name: p.name.clone(),
-                    f0: p.f0,
-                    k: p.k,
-                    omega: p.omega,
-                    alpha: p.alpha,
-                    sweep: p.sweep.clone(),
-                    dwell: p.dwell,
-                    model: p.model.clone(),
-                    grid,
-                    certify: p.certify.unwrap_or(true),
-                    margin,
+                    params,
                 })
             }
         };
@@ -524,19 +458,21 @@ impl Plan {
             policy,
         };
 
-        let metrics: Vec<String> = match &raw.metrics {
-            None => METRICS.iter().map(|m| m.to_string()).collect(),
+        let metrics: Vec<Metric> = match &raw.metrics {
+            None => Metric::ALL.to_vec(),
             Some(list) => {
+                let mut chosen = Vec::new();
                 for m in list {
-                    if !METRICS.contains(&m.as_str()) {
-                        return Err(bad("metrics", m, &format!("a list of {METRICS:?}")));
-                    }
+                    let all = Metric::ALL.map(Metric::name).join(", ");
+                    chosen.push(
+                        Metric::parse(m)
+                            .ok_or_else(|| bad("metrics", m, &format!("a list of {all}")))?,
+                    );
                 }
-                // file order does not matter: the columns follow METRICS
-                METRICS
-                    .iter()
-                    .filter(|m| list.iter().any(|x| x == *m))
-                    .map(|m| m.to_string())
+                // file order does not matter: the columns follow the metric table
+                Metric::ALL
+                    .into_iter()
+                    .filter(|m| chosen.contains(m))
                     .collect()
             }
         };

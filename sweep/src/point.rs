@@ -5,7 +5,7 @@
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
 
 use crate::plan::{Evaluate, Plan};
 
@@ -69,7 +69,7 @@ pub enum PointError {
         /// The point's axis values.
         at: String,
         /// The scenario's own message (names the field, the value and what is allowed).
-        cause: Box<crawler_plant::scenario::ScenarioError>,
+        cause: Box<crawler_physics::scenario::ScenarioError>,
     },
 }
 

@@ -2,44 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Steady-state metrics of the plant, a model or a policy run (SI units). `None` where there is
-/// no value (a model outside its validity, or a non-finite number, which is never stored).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct Metrics {
-    /// Mean speed V, m/s.
-    pub velocity: Option<f64>,
-    /// Input power over the body P, W.
-    pub power: Option<f64>,
-    /// Mileage M = |V| / P, m/J.
-    pub mileage: Option<f64>,
-    /// Largest stress sup T / A_c, Pa.
-    pub max_stress: Option<f64>,
-    /// Largest strain max |u_x|.
-    pub max_strain: Option<f64>,
-    /// Share of node-time stuck.
-    pub stuck_fraction: Option<f64>,
-    /// Mean friction selection <s>.
-    pub mean_friction_selection: Option<f64>,
-    /// Stick episodes per node per forcing period.
-    pub episodes_per_node_per_period: Option<f64>,
-}
-
-impl Metrics {
-    /// The metric called `name` (one of [`crate::plan::METRICS`]).
-    pub fn get(&self, name: &str) -> Option<f64> {
-        match name {
-            "velocity" => self.velocity,
-            "power" => self.power,
-            "mileage" => self.mileage,
-            "max_stress" => self.max_stress,
-            "max_strain" => self.max_strain,
-            "stuck_fraction" => self.stuck_fraction,
-            "mean_friction_selection" => self.mean_friction_selection,
-            "episodes_per_node_per_period" => self.episodes_per_node_per_period,
-            _ => None,
-        }
-    }
-}
+/// Steady-state metrics of the plant, a model or a policy run (the metric table's, SI units).
+/// `None` where there is no value (a model outside its validity, or a non-finite number, which
+/// is never stored).
+pub type Metrics = crawler_facts::MetricValues;
 
 /// `Some(x)` if `x` is finite.
 pub fn finite(x: f64) -> Option<f64> {

@@ -40,6 +40,18 @@ impl Paths {
     }
 }
 
+/// What a program draws of a plan's maps (figures, a recording) into a folder, returning the
+/// files written; the library computes the maps ([`crate::maps::Maps`]) and draws nothing.
+pub trait MapOutputs {
+    /// Writes the maps of `plan` into `dir`.
+    fn write(
+        &self,
+        plan: &Plan,
+        maps: &crate::maps::Maps,
+        dir: &Path,
+    ) -> anyhow::Result<Vec<PathBuf>>;
+}
+
 /// The executor of a sweep.
 #[derive(Debug, Clone)]
 pub enum Executor {
@@ -143,23 +155,19 @@ impl Sweep {
         Ok(Some(v))
     }
 
-    /// Writes the Parquet file, and the figures and recording if the plan asks for them.
-    pub fn write_outputs(&self, records: &[Record], figures: bool) -> anyhow::Result<Vec<PathBuf>> {
+    /// Writes the Parquet file, and, if the plan asks for maps and `maps` draws them, the maps
+    /// (figures, a recording).
+    pub fn write_outputs(
+        &self,
+        records: &[Record],
+        maps: Option<&dyn MapOutputs>,
+    ) -> anyhow::Result<Vec<PathBuf>> {
         let batch = table::batch(&self.plan, &self.points, records)?;
         table::write_parquet(&self.plan, &batch, &self.paths.out)?;
         let mut written = vec![self.paths.out.clone()];
-        if figures {
-            if let Some(f) = &self.plan.figures {
-                let maps = crate::maps::Maps::build(&self.plan, f, &self.points, records)?;
-                written.extend(crate::figures::draw(
-                    &self.plan,
-                    &maps,
-                    &self.paths.figures,
-                )?);
-                let rrd = self.paths.figures.join(format!("{}.rrd", self.plan.name));
-                crate::recording::write(&self.plan, &maps, &rrd)?;
-                written.push(rrd);
-            }
+        if let (Some(out), Some(f)) = (maps, &self.plan.figures) {
+            let built = crate::maps::Maps::build(&self.plan, f, &self.points, records)?;
+            written.extend(out.write(&self.plan, &built, &self.paths.figures)?);
         }
         Ok(written)
     }
@@ -169,7 +177,7 @@ impl Sweep {
         &self,
         executor: &Executor,
         retry_failed: bool,
-        figures: bool,
+        maps: Option<&dyn MapOutputs>,
         interrupt: &AtomicBool,
     ) -> anyhow::Result<Ending> {
         let todo = self.missing(retry_failed)?;
@@ -251,11 +259,11 @@ impl Sweep {
                 }
             }
         }
-        self.finish(evaluated, failed_now, figures, started)
+        self.finish(evaluated, failed_now, maps, started)
     }
 
     /// Merges Slurm task files into the store, then writes the outputs if every point is there.
-    pub fn collect(&self, figures: bool) -> anyhow::Result<Ending> {
+    pub fn collect(&self, maps: Option<&dyn MapOutputs>) -> anyhow::Result<Ending> {
         let started = Instant::now();
         let c = slurm::collect(&self.paths.slurm, &self.store, true)?;
         eprintln!(
@@ -272,14 +280,14 @@ impl Sweep {
                 c.active_jobs.join(", ")
             );
         }
-        self.finish(c.added, 0, figures, started)
+        self.finish(c.added, 0, maps, started)
     }
 
     fn finish(
         &self,
         evaluated: usize,
         failed_now: usize,
-        figures: bool,
+        maps: Option<&dyn MapOutputs>,
         started: Instant,
     ) -> anyhow::Result<Ending> {
         let Some(records) = self.records()? else {
@@ -288,7 +296,7 @@ impl Sweep {
             return Ok(Ending::Incomplete { missing, logs });
         };
         let failed = records.iter().filter(|r| r.error.is_some()).count();
-        let written = self.write_outputs(&records, figures)?;
+        let written = self.write_outputs(&records, maps)?;
         let secs = started.elapsed().as_secs_f64();
         eprintln!(
             "crawler-sweep: {} points evaluated in {secs:.1} s{}; {} of {} points failed (column error){}",

@@ -21,17 +21,7 @@ use parquet::file::properties::WriterProperties;
 use crate::plan::{column_type, ColumnType, Plan};
 use crate::point::{Point, CODE, FORMAT};
 use crate::record::{finite, Metrics, PlantResult, Record};
-
-/// The unit of a metric's values.
-pub fn unit(metric: &str) -> &'static str {
-    match metric {
-        "velocity" => "m/s",
-        "power" => "W",
-        "mileage" => "m/J",
-        "max_stress" => "Pa",
-        _ => "1",
-    }
-}
+use crawler_facts::Metric;
 
 enum Data {
     F64(Vec<Option<f64>>),
@@ -67,9 +57,14 @@ impl Column {
 /// The difference of a model's value from the plant's: relative (`pred / plant - 1`) for the
 /// physical metrics, absolute (`pred - plant`) for shares. `floor` keeps a relative error finite
 /// where the plant's value vanishes (the speed at eps = 0): the denominator is at least `floor`.
-pub fn model_error(metric: &str, pred: Option<f64>, plant: Option<f64>, floor: f64) -> Option<f64> {
+pub fn model_error(
+    metric: Metric,
+    pred: Option<f64>,
+    plant: Option<f64>,
+    floor: f64,
+) -> Option<f64> {
     let (p, q) = (pred?, plant?);
-    if absolute(metric) {
+    if metric.info().share {
         return Some(p - q);
     }
     if p == q {
@@ -95,22 +90,14 @@ fn scales(point: &Point) -> (f64, f64) {
 /// of the point's speed scale for the speed, of its power scale for the power and of their ratio
 /// for the mileage. Values below it are zero up to round-off or solver tolerance (without dry
 /// friction V = 0; a body at rest has V = 0 and P = 0); none for the other metrics.
-pub fn error_floor(metric: &str, point: &Point) -> f64 {
+pub fn error_floor(metric: Metric, point: &Point) -> f64 {
     let (v, p) = scales(point);
     match metric {
-        "velocity" => 1e-6 * v,
-        "power" => 1e-6 * p,
-        "mileage" if p > 0.0 => 1e-6 * v / p,
+        Metric::Velocity => 1e-6 * v,
+        Metric::Power => 1e-6 * p,
+        Metric::Mileage if p > 0.0 => 1e-6 * v / p,
         _ => 0.0,
     }
-}
-
-/// Metrics whose errors are absolute differences (shares), not relative ones.
-pub fn absolute(name: &str) -> bool {
-    matches!(
-        name,
-        "stuck_fraction" | "mean_friction_selection" | "episodes_per_node_per_period"
-    )
 }
 
 /// The estimated discretisation error of the reported plant value of metric `name` at `point`:
@@ -118,12 +105,12 @@ pub fn absolute(name: &str) -> bool {
 /// friction selection, episodes) the absolute difference. It bounds the finer run's error when
 /// the scheme converges at first order or better (at second order it is three times that error,
 /// tested). `None` without a coarse run or a value.
-pub fn conv_error(result: &PlantResult, name: &str, point: &Point) -> Option<f64> {
+pub fn conv_error(result: &PlantResult, name: Metric, point: &Point) -> Option<f64> {
     let coarse = result.coarse.as_ref()?;
     let f = comparable(name, &result.run.metrics, point)?;
     let c = comparable(name, &coarse.metrics, point)?;
     let d = (f - c).abs();
-    if absolute(name) || d == 0.0 {
+    if name.info().share || d == 0.0 {
         return Some(d);
     }
     let den = f.abs().max(error_floor(name, point));
@@ -132,16 +119,17 @@ pub fn conv_error(result: &PlantResult, name: &str, point: &Point) -> Option<f64
 
 /// The value of `metric` in `m` that a model is compared on: the mileage `|V| / P` only where
 /// the power is above round-off (a body at rest has no mileage: 0 / 0).
-pub fn comparable(metric: &str, m: &Metrics, point: &Point) -> Option<f64> {
+pub fn comparable(metric: Metric, m: &Metrics, point: &Point) -> Option<f64> {
     let v = m.get(metric)?;
-    if metric == "mileage" && m.power?.abs() <= error_floor("power", point) {
+    if metric == Metric::Mileage && m.get(Metric::Power)?.abs() <= error_floor(Metric::Power, point)
+    {
         return None;
     }
     Some(v)
 }
 
 /// The model's error for `metric` at `point` ([`model_error`] of the [`comparable`] values).
-pub fn point_error(metric: &str, point: &Point, model: &Metrics, plant: &Metrics) -> Option<f64> {
+pub fn point_error(metric: Metric, point: &Point, model: &Metrics, plant: &Metrics) -> Option<f64> {
     model_error(
         metric,
         comparable(metric, model, point),
@@ -230,10 +218,10 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
             "zeta",
             "1",
             "paper's zeta = c_v / (k sqrt(rho A_c E))",
-            |p| crawler_controller::OperatingPoint::of(&p.scenario).zeta(),
+            |p| crawler_models::OperatingPoint::of(&p.scenario).zeta(),
         ),
         ("pi_r", "1", "paper's pi_r = c_d / (f0 k)", |p| {
-            crawler_controller::OperatingPoint::of(&p.scenario).pi_r()
+            crawler_models::OperatingPoint::of(&p.scenario).pi_r()
         }),
         ("length", "m", "body length L", |p| p.scenario.plant.length),
         ("area", "m^2", "cross-section A_c", |p| {
@@ -347,12 +335,11 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                     .collect(),
             ),
         });
-        for m in &plan.metrics {
-            let m = m.as_str();
+        for &m in &plan.metrics {
             cols.push(f64col(
                 format!("plant.{m}"),
-                unit(m),
-                format!("plant's {m}"),
+                m.unit(),
+                format!("plant's {}, {}", m.info().label, m.info().doc),
                 &|_, r| r.plant.as_ref().and_then(|p| p.run.metrics.get(m)),
             ));
             if e.convergence {
@@ -361,7 +348,7 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                     "1",
                     format!(
                         "estimated discretisation error of plant.{m}: |value(2N) - value(N)|{}",
-                        if absolute(m) {
+                        if m.info().share {
                             ""
                         } else {
                             " / max(|value(2N)|, 1e-6 of the point's scale)"
@@ -398,11 +385,10 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                     .collect(),
             ),
         });
-        for m in &plan.metrics {
-            let m = m.as_str();
+        for &m in &plan.metrics {
             cols.push(f64col(
                 format!("{model}.{m}"),
-                unit(m),
+                m.unit(),
                 format!("{model} model's {m}"),
                 &|_, r| pick(r, mi).and_then(|x| x.metrics.get(m)),
             ));
@@ -410,11 +396,11 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                 cols.push(f64col(
                     format!("{model}.{m}.error"),
                     "1",
-                    if absolute(m) {
+                    if m.info().share {
                         format!("{model}.{m} - plant.{m}")
                     } else {
                         format!(
-                            "{model}.{m} / plant.{m} - 1 (the denominator at least 1e-9 of the point's scale; null where undefined)"
+                            "{model}.{m} / plant.{m} - 1 (the denominator at least 1e-6 of the point's scale; null where undefined)"
                         )
                     },
                     &|p, r| {
@@ -459,11 +445,10 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                 &|_, r| r.policy.as_ref().and_then(|p| p.wave).map(|w| w[i]),
             ));
         }
-        for m in &plan.metrics {
-            let m = m.as_str();
+        for &m in &plan.metrics {
             cols.push(f64col(
                 format!("policy.{m}"),
-                unit(m),
+                m.unit(),
                 format!("plant's {m} under the policy"),
                 &|_, r| r.policy.as_ref().and_then(|p| p.run.metrics.get(m)),
             ));

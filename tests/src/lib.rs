@@ -205,13 +205,13 @@ impl Run {
         )
     }
 
-    /// `crawler-bridge record --out FILE` with `args` (network flags added).
+    /// `crawler-recorder record --out FILE` with `args` (network flags added).
     pub fn bridge(&self, out: &Path, args: &[&str]) -> Proc {
         let mut a: Vec<String> = vec!["record".into()];
         a.extend(self.net());
         a.extend(["--out".into(), out.display().to_string()]);
         a.extend(args.iter().map(|s| s.to_string()));
-        Proc::spawn("bridge", &bin("crawler-bridge"), &a, self.dir.path())
+        Proc::spawn("bridge", &bin("crawler-recorder"), &a, self.dir.path())
     }
 
     /// The Python example controller with `args`.

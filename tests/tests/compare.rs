@@ -3,11 +3,9 @@
 
 use std::time::Duration;
 
-use crawler_controller::closed_loop;
-use crawler_controller::controller::{Context, FeedbackOptions, PolicyOptions};
-use crawler_controller::policies;
 use crawler_e2e::{bin, repo_root, Proc, Run};
-use crawler_plant::scenario::{Overrides, Scenario};
+use crawler_physics::scenario::{Overrides, Scenario};
+use crawler_policies::{in_process, Params};
 
 #[test]
 fn compare_runs_every_policy_through_the_cosimulation() {
@@ -78,9 +76,7 @@ fn compare_runs_every_policy_through_the_cosimulation() {
         },
     )
     .unwrap();
-    let ctx = Context::as_told(&sc, PolicyOptions::default(), FeedbackOptions::default()).unwrap();
-    let mut reflex = policies::build("reflex", &ctx).unwrap();
-    let local = closed_loop::run(&sc, reflex.as_mut()).unwrap();
+    let local = in_process::run_named(&sc, "reflex", &Params::none()).unwrap();
     let cosim = rows
         .iter()
         .find(|r| r["case"] == "nominal" && r["policy"] == "reflex")

@@ -4,10 +4,10 @@
 use std::f64::consts::TAU;
 use std::time::Duration;
 
-use crawler_controller::closed_loop;
-use crawler_controller::{Actuation, Controller, Observation};
 use crawler_e2e::{json, Run};
-use crawler_plant::scenario::Scenario;
+use crawler_physics::scenario::Scenario;
+use crawler_policies::in_process;
+use crawler_policies::{Actuation, Observation, Policy};
 
 /// `examples/python_reflex_controller.py`'s law: the wave at the faces, mid-step, plus
 /// `gain f0 (stuck[i + 1] - stuck[i])`.
@@ -20,7 +20,7 @@ struct StickReflex {
     step: f64,
 }
 
-impl Controller for StickReflex {
+impl Policy for StickReflex {
     fn name(&self) -> &str {
         "stick-reflex"
     }
@@ -68,10 +68,10 @@ fn the_python_reflex_controller_closes_the_loop_as_its_law_says() {
         dx: length / 128.0,
         step: sc.plant.discretisation().unwrap().step,
     };
-    let local = closed_loop::run(&sc, &mut law(0.5)).unwrap().report;
+    let local = in_process::run(&sc, &mut law(0.5)).unwrap().report;
     assert_eq!(json(&p.stdout)["state_digest"], local.state_digest.as_str());
     // the reflex acts: without it the trajectory is another one
-    let open = closed_loop::run(&sc, &mut law(0.0)).unwrap().report;
+    let open = in_process::run(&sc, &mut law(0.0)).unwrap().report;
     assert_ne!(open.state_digest, local.state_digest);
     assert!(local.stuck_fraction > 0.0, "no anchors to react to");
 }

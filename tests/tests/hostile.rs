@@ -10,6 +10,7 @@
 //! Every attack leaves the run's result (its state digest) unchanged and every process within
 //! its memory budget.
 
+use crawler_facts::{Metric, MetricValues};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -111,13 +112,15 @@ fn status(id: &str, state: &str, step: u64) -> Status {
 fn forged_report() -> FinalReport {
     FinalReport {
         scenario: "forged".into(),
-        velocity: 9.0,
-        power: 1.0,
-        mileage: Some(9.0),
-        max_stress: 1.0,
-        max_strain: 0.0,
-        stuck_fraction: 0.0,
-        mean_friction_selection: 0.0,
+        values: MetricValues::of(&[
+            (Metric::Velocity, 9.0),
+            (Metric::Power, 1.0),
+            (Metric::Mileage, 9.0),
+            (Metric::MaxStress, 1.0),
+            (Metric::MaxStrain, 0.0),
+            (Metric::StuckFraction, 0.0),
+            (Metric::MeanFrictionSelection, 0.0),
+        ]),
         dissipation: 1.0,
         identity_velocity: 9.0,
         momentum_residual: None,

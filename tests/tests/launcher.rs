@@ -178,7 +178,7 @@ fn one_command_runs_the_whole_cosimulation() {
     );
     let rec = read_recording(&rrd).unwrap();
     // one row per communication point 0..=last, the last at or after t = 6 s
-    let last = crawler_plant::Scenario::paper()
+    let last = crawler_physics::Scenario::paper()
         .plant
         .discretisation()
         .unwrap()
@@ -192,7 +192,7 @@ fn the_recorder_checks_its_inputs_without_creating_anything() {
     let run = Run::new("recorder-check");
     let out = run.path("x.rrd");
     let check = |extra: &[&str]| {
-        std::process::Command::new(bin("crawler-bridge"))
+        std::process::Command::new(bin("crawler-recorder"))
             .args([
                 "record",
                 "--no-auth",
@@ -327,7 +327,7 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
         &["run", "--credential", "/", "--wait-timeout", "1"],
         "--credential",
     );
-    check("crawler-bridge", &["record", "--every", "0"], "--every");
+    check("crawler-recorder", &["record", "--every", "0"], "--every");
     // a negative number is a value (not a flag the launcher suggests passing on with `--`)
     check(
         "crawler",
@@ -336,7 +336,7 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
     );
     // times too long for a clock (they panicked turning into a Duration), written as given
     check(
-        "crawler-bridge",
+        "crawler-recorder",
         &["record", "--idle-timeout", "1e300"],
         "invalid --idle-timeout = 1e300: allowed",
     );

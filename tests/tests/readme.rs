@@ -18,17 +18,21 @@ fn readme() -> String {
 #[test]
 fn readme_shows_the_real_example_controller_and_its_registration() {
     let readme = squeeze(&readme());
-    let file =
-        std::fs::read_to_string(repo_root().join("controller/src/policies/pulse.rs")).unwrap();
+    let file = std::fs::read_to_string(repo_root().join("policies/src/pulse.rs")).unwrap();
     assert!(
         readme.contains(&squeeze(&file)),
-        "README.md must show controller/src/policies/pulse.rs as it is"
+        "README.md must show policies/src/pulse.rs as it is"
     );
-    let registry =
-        std::fs::read_to_string(repo_root().join("controller/src/policies/mod.rs")).unwrap();
-    let line = r#"("pulse", "the scenario's wave, on and off every second", pulse::build),"#;
-    assert!(readme.contains(&squeeze(line)));
-    assert!(squeeze(&registry).contains(&squeeze(line)));
+    let registry = std::fs::read_to_string(repo_root().join("policies/src/registry.rs")).unwrap();
+    let entry = r#"Entry {
+        name: "pulse",
+        help: "the scenario's wave, on and off every second",
+        keys: &[],
+        build: crate::pulse::build,
+        check: None,
+    },"#;
+    assert!(readme.contains(&squeeze(entry)));
+    assert!(squeeze(&registry).contains(&squeeze(entry)));
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! when the wave changes or a feedback policy has something to say, a `Prediction` for the
 //! recorder (published after the actuation, so that the plant never waits for it).
 
-use crawler_plant::wave::Wave;
+use crawler_physics::wave::Wave;
 use crawler_protocol::{
     Actuation as ActuationMsg, FinalReport, ModelPrediction, Prediction as PredictionMsg, State,
     WaveMsg, PROTOCOL_VERSION,
@@ -10,11 +10,12 @@ use crawler_protocol::{
 
 use super::predictions::{insight_prediction, predictions};
 use super::summary::FinalSummary;
-use crate::controller::{Actuation, Context, Controller, Observation};
+use crawler_physics::execution::{Actuation, Observation};
+use crawler_policies::{Context, Policy};
 
 /// A policy at work in a run, with what it last applied.
 pub struct Responder<'a> {
-    policy: Box<dyn Controller>,
+    policy: Box<dyn Policy>,
     ctx: &'a Context,
     /// This controller's id, which every actuation carries.
     id: String,
@@ -35,7 +36,7 @@ fn wave_msg(w: Wave) -> WaveMsg {
 
 impl<'a> Responder<'a> {
     /// `policy` answering for controller `id` on the plant of `ctx`.
-    pub fn new(policy: Box<dyn Controller>, ctx: &'a Context, id: &str) -> Self {
+    pub fn new(policy: Box<dyn Policy>, ctx: &'a Context, id: &str) -> Self {
         Self {
             policy,
             ctx,
@@ -62,7 +63,7 @@ impl<'a> Responder<'a> {
             step: state.step,
             time: state.time,
             u: &state.u,
-            v: &state.vel,
+            vel: &state.vel,
             tension: &state.tension,
             stuck: &state.stuck,
             mean_speed: state.mean_speed,

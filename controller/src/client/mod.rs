@@ -19,7 +19,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 use crawler_cli::Exit;
-use crawler_plant::scenario::Scenario;
+use crawler_physics::scenario::Scenario;
 use crawler_protocol::{
     decode, encode, ModelInfo, ProcessState, Rejections, Role, RunKeys, RunLimits, State, Status,
     PROTOCOL_VERSION,
@@ -27,11 +27,11 @@ use crawler_protocol::{
 use crawler_transport::gate::{self, Gate, Refused};
 use crawler_transport::{Credential, Network, Seal};
 
-use crate::controller::{FeedbackOptions, PolicyOptions};
 use answer::Responder;
+use crawler_policies::Params;
 use inbox::{Event, Inbox};
 pub use inbox::{STATE_INBOX_BYTES, STATUS_INBOX_BYTES};
-pub use predictions::{context_of, paper_tail, predictions};
+pub use predictions::{briefing_of, context_of, paper_tail, predictions};
 pub use summary::FinalSummary;
 pub use watch::{finished_may_follow, last_state_fits, terminal_is_consistent};
 use watch::{Verdict, Watch};
@@ -41,10 +41,8 @@ use watch::{Verdict, Watch};
 pub struct ClientOptions {
     /// Registered policy name.
     pub policy: String,
-    /// Policy options.
-    pub options: PolicyOptions,
-    /// Settings of the feedback policies.
-    pub feedback: FeedbackOptions,
+    /// The policy's parameters (`--param KEY=VALUE`).
+    pub params: Params,
     /// The scenario: task, limits and default wave (the plant's parameters come from the plant).
     pub scenario: Scenario,
     /// Where the run's processes meet.
@@ -301,13 +299,8 @@ fn serve(
         publish_status(&status_pub, seal, id, (state, message, step));
     };
 
-    let ctx = context_of(
-        &info,
-        &opts.scenario,
-        opts.options.clone(),
-        opts.feedback.clone(),
-    );
-    let policy = crate::policies::build(&opts.policy, &ctx)?;
+    let ctx = context_of(&info, &opts.scenario);
+    let policy = crawler_policies::build(&opts.policy, &ctx, &opts.params)?;
     eprintln!(
         "crawler-controller: plant found ({} cells, L = {} m, H = {} s); policy {}",
         info.cells,

@@ -2,62 +2,52 @@
 //! for the recorder about the wave it applies: the models' predictions ([`predictions`]) and a
 //! feedback policy's own report ([`insight_prediction`]).
 
-use crawler_plant::params::{Body, Boundary, Friction};
-use crawler_plant::scenario::Scenario;
-use crawler_plant::wave::Wave;
+use crawler_physics::params::{Body, Boundary, Friction};
+use crawler_physics::scenario::Scenario;
+use crawler_physics::wave::Wave;
 use crawler_protocol::{ModelInfo, ModelPrediction, Series};
 
-use crate::controller::{Context, FeedbackOptions, Insight, PolicyOptions};
-use crate::operating_point::OperatingPoint;
-use crate::paper_model::{first_order_harmonic, PaperModel, PaperTerms};
-use crate::prediction::{Model, Prediction, Validity};
-use crate::travelling_wave::TravellingWaveModel;
+use crawler_facts::MetricValues;
+use crawler_models::operating_point::OperatingPoint;
+use crawler_models::paper_model::{first_order_harmonic, PaperModel, PaperTerms};
+use crawler_models::prediction::{Model, Prediction, Validity};
+use crawler_models::travelling_wave::TravellingWaveModel;
+use crawler_physics::execution::Briefing;
+use crawler_policies::{Context, Insight};
 
-/// The plant's parameters as a controller context: what the plant tells (its body, grid, step and
-/// the friction it discloses) over the controller's own scenario file (task, limits, default
-/// wave). When the plant does not disclose its pipe, the pipe map of the controller's file is
-/// dropped too, so that no policy can read the environment from a file it happens to share.
-pub fn context_of(
-    info: &ModelInfo,
-    scenario: &Scenario,
-    options: PolicyOptions,
-    feedback: FeedbackOptions,
-) -> Context {
-    let mut scenario = scenario.clone();
-    if !info.disclosed {
-        scenario.plant.pipe.features.clear();
-        scenario.plant.pipe.disclose = false;
-    }
-    scenario.plant.body = Body {
-        area: info.area,
-        density: info.density,
-        youngs_modulus: info.youngs_modulus,
-    };
-    scenario.plant.friction = Friction {
-        viscous: info.viscous,
-        dry: info.dry,
-        eps: info.eps,
-        n_f: info.n_f,
-    };
-    scenario.plant.length = info.length;
-    scenario.plant.boundary = if info.boundary == "free" {
-        Boundary::Free
-    } else {
-        Boundary::Periodic
-    };
-    scenario.plant.numerics.cells = info.cells as usize;
-    scenario.plant.numerics.step = info.step;
-    Context {
-        body: scenario.plant.body,
-        friction: scenario.plant.friction,
+/// What the plant's `model` reply tells a controller, as the plant library's [`Briefing`] (the
+/// plant decides it with `Briefing::of`; the wire only carries its fields).
+pub fn briefing_of(info: &ModelInfo) -> Briefing {
+    Briefing {
+        body: Body {
+            area: info.area,
+            density: info.density,
+            youngs_modulus: info.youngs_modulus,
+        },
+        friction: Friction {
+            viscous: info.viscous,
+            dry: info.dry,
+            eps: info.eps,
+            n_f: info.n_f,
+        },
         length: info.length,
-        boundary: scenario.plant.boundary,
+        boundary: if info.boundary == "free" {
+            Boundary::Free
+        } else {
+            Boundary::Periodic
+        },
         cells: info.cells as usize,
         step: info.step,
-        scenario,
-        options,
-        feedback,
+        start_time: info.start_time,
+        last_step: info.last_step,
+        settle: info.settle,
+        disclosed: info.disclosed,
     }
+}
+
+/// The context of a policy told `info` by the plant, over the controller's own `scenario`.
+pub fn context_of(info: &ModelInfo, scenario: &Scenario) -> Context {
+    Context::new(&briefing_of(info), scenario)
 }
 
 /// The paper's reconstructed tail displacement `u(0, t) = u_c (mu0 + eps mu1)` as a series.
@@ -91,11 +81,7 @@ pub fn paper_tail(op: &OperatingPoint, harmonics: u32) -> Option<Series> {
 fn model_prediction(p: &Prediction, tail: Option<Series>) -> ModelPrediction {
     ModelPrediction {
         model: p.model.to_string(),
-        velocity: p.velocity,
-        power: p.power,
-        mileage: p.mileage.filter(|m| m.is_finite()),
-        max_stress: p.max_stress,
-        stuck_fraction: p.stuck_fraction,
+        values: p.values(),
         validity: match &p.validity {
             Validity::Valid => "valid".into(),
             Validity::OutsideValidity(r) => r.clone(),
@@ -128,11 +114,7 @@ pub fn insight_prediction(i: &Insight) -> ModelPrediction {
         Some(p) => model_prediction(p, None),
         None => ModelPrediction {
             model: "controller".into(),
-            velocity: None,
-            power: None,
-            mileage: None,
-            max_stress: None,
-            stuck_fraction: None,
+            values: MetricValues::NONE,
             validity: String::new(),
             tail: None,
         },

@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use crawler_facts::Metric;
 use crawler_protocol::{FinalReport, ModelPrediction, WaveMsg};
 
 /// Predicted against simulated metrics at the end of a run.
@@ -22,8 +23,8 @@ pub struct FinalSummary {
 
 impl FinalSummary {
     /// A table of predicted against simulated metrics, headed by what the plant's window was.
-    /// Errors are relative, except for the stuck fraction (a share, often near zero), whose
-    /// difference is given in absolute terms.
+    /// Errors are relative, except for shares (the stuck fraction, often near zero), whose
+    /// difference is given in absolute terms; a model without a value says why below the table.
     pub fn table(&self) -> String {
         let steady = self.plant.as_ref().map(|p| p.window.steady);
         let mut out = match steady {
@@ -38,35 +39,23 @@ impl FinalSummary {
                 w.f0, w.k, w.omega
             );
         }
-        let rows: [Row; 5] = [
-            ("velocity V", "m/s", |m| m.velocity, |r| Some(r.velocity)),
-            ("power P", "W", |m| m.power, |r| Some(r.power)),
-            ("mileage M", "m/J", |m| m.mileage, |r| r.mileage),
-            ("max stress", "Pa", |m| m.max_stress, |r| Some(r.max_stress)),
-            (
-                "stuck fraction",
-                "",
-                |m| m.stuck_fraction,
-                |r| Some(r.stuck_fraction),
-            ),
-        ];
-        out += &format!("{:<16} {:>14}", "metric", "plant");
+        out += &format!("{:<20} {:>14}", "metric", "plant");
         for m in &self.predictions {
             out += &format!(" {:>14} {:>8}", m.model, "error");
         }
         out += "\n";
-        for (name, unit, get, simulated) in &rows {
-            let sim = self.plant.as_ref().and_then(simulated);
-            let share = *name == "stuck fraction";
-            out += &format!(
-                "{:<16} {:>14}",
-                format!("{name} {unit}").trim_end(),
-                fmt(sim)
-            );
+        for metric in ROWS {
+            let info = metric.info();
+            let sim = self.plant.as_ref().and_then(|r| r.values.get(metric));
+            let label = match info.unit {
+                "1" => info.label.to_string(),
+                unit => format!("{} {unit}", info.label),
+            };
+            out += &format!("{label:<20} {:>14}", fmt(sim));
             for m in &self.predictions {
-                let p = get(m);
+                let p = m.values.get(metric);
                 let err = match (p, sim) {
-                    (Some(p), Some(s)) if share => format!("{:+.4}", p - s),
+                    (Some(p), Some(s)) if info.share => format!("{:+.4}", p - s),
                     (Some(p), Some(s)) if s != 0.0 => format!("{:+.2}%", 100.0 * (p / s - 1.0)),
                     _ => "-".into(),
                 };
@@ -74,17 +63,26 @@ impl FinalSummary {
             }
             out += "\n";
         }
+        // every "-" said in place: a model without a value says why
+        for m in &self.predictions {
+            if ROWS.iter().any(|&r| m.values.get(r).is_none()) && m.validity != "valid" {
+                out += &format!("{}: - where {}\n", m.model, m.validity);
+            }
+        }
+        out +=
+            "errors: relative to the plant, except for shares (the stuck fraction: difference)\n";
         out
     }
 }
 
-/// A row of the comparison table: label, unit, the model's value, the plant's value.
-type Row = (
-    &'static str,
-    &'static str,
-    fn(&ModelPrediction) -> Option<f64>,
-    fn(&FinalReport) -> Option<f64>,
-);
+/// The rows of the comparison table.
+const ROWS: [Metric; 5] = [
+    Metric::Velocity,
+    Metric::Power,
+    Metric::Mileage,
+    Metric::MaxStress,
+    Metric::StuckFraction,
+];
 
 fn fmt(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{v:.5e}"))

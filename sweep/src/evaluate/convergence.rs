@@ -5,10 +5,11 @@
 //!
 //! This is the one place that decides how the plant is run at a point.
 
-use crawler_plant::scenario::Scenario;
-use crawler_plant::simulate::{simulate, Report, SimulateOptions};
+use crawler_physics::report::Report;
+use crawler_physics::scenario::Scenario;
+use crawler_physics::simulate::{simulate, SimulateOptions};
 
-use crate::record::{finite, Metrics, PlantResult, PlantRun};
+use crate::record::{finite, PlantResult, PlantRun};
 
 /// Options of the plant runs of a sweep: no progress bar, episodes counted but not listed.
 pub fn run_options() -> SimulateOptions<'static> {
@@ -21,16 +22,7 @@ pub fn run_options() -> SimulateOptions<'static> {
 /// The metrics and resolution of a plant report.
 pub fn plant_run(r: &Report) -> PlantRun {
     PlantRun {
-        metrics: Metrics {
-            velocity: finite(r.velocity),
-            power: finite(r.power),
-            mileage: finite(r.mileage),
-            max_stress: finite(r.max_stress),
-            max_strain: finite(r.max_strain),
-            stuck_fraction: finite(r.stuck_fraction),
-            mean_friction_selection: finite(r.mean_friction_selection),
-            episodes_per_node_per_period: finite(r.events.per_node_per_period),
-        },
+        metrics: r.values(),
         cells: r.cells as u64,
         dt: r.dt,
         steps: r.steps,
@@ -41,7 +33,7 @@ pub fn plant_run(r: &Report) -> PlantRun {
 }
 
 /// Runs the plant of `scenario`; with `refine`, also at twice its cells (the plant library's
-/// [`crawler_plant::convergence::estimate`]: the same scenario with `2N` cells, so `dx` and `dt`
+/// [`crawler_physics::convergence::estimate`]: the same scenario with `2N` cells, so `dx` and `dt`
 /// halve at the same Courant number) and reports the finer run with the coarser one beside it.
 pub fn plant_with_estimate(scenario: &Scenario, refine: bool) -> Result<PlantResult, String> {
     let n = scenario.plant.numerics.cells;
@@ -52,7 +44,7 @@ pub fn plant_with_estimate(scenario: &Scenario, refine: bool) -> Result<PlantRes
             coarse: None,
         });
     }
-    let c = crawler_plant::convergence::estimate(scenario, 0, None)
+    let c = crawler_physics::convergence::estimate(scenario, 0, None)
         .map_err(|e| format!("plant at N = {n} and 2N = {}: {e}", 2 * n))?;
     Ok(PlantResult {
         run: plant_run(&c.fine),

@@ -5,20 +5,19 @@ pub mod policy_run;
 
 use std::time::Instant;
 
-use crawler_controller::operating_point::OperatingPoint;
-use crawler_controller::paper_model::PaperModel;
-use crawler_controller::prediction::{Model, Prediction, Validity};
-use crawler_controller::travelling_wave::TravellingWaveModel;
+use crawler_models::operating_point::OperatingPoint;
+use crawler_models::paper_model::PaperModel;
+use crawler_models::prediction::{Model, Prediction, Validity};
+use crawler_models::travelling_wave::TravellingWaveModel;
 
 use crate::plan::Evaluate;
 use crate::point::{Point, FORMAT};
-use crate::record::{finite, Metrics, ModelResult, Record};
+use crate::record::{ModelResult, Record};
 
 /// Steps per forcing period of the improved model's march (its default).
 pub const IMPROVED_STEPS: usize = 1024;
 
 fn model_result(p: &Prediction) -> ModelResult {
-    let f = |x: Option<f64>| x.and_then(finite);
     ModelResult {
         model: p.model.to_string(),
         valid: p.validity.is_valid(),
@@ -26,16 +25,7 @@ fn model_result(p: &Prediction) -> ModelResult {
             Validity::Valid => None,
             Validity::OutsideValidity(r) => Some(r.clone()),
         },
-        metrics: Metrics {
-            velocity: f(p.velocity),
-            power: f(p.power),
-            mileage: f(p.mileage),
-            max_stress: f(p.max_stress),
-            max_strain: f(p.max_strain),
-            stuck_fraction: f(p.stuck_fraction),
-            mean_friction_selection: f(p.mean_friction_selection),
-            episodes_per_node_per_period: f(p.episodes_per_node_per_period),
-        },
+        metrics: p.values(),
     }
 }
 

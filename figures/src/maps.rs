@@ -1,0 +1,332 @@
+//! PNG heat maps of a plan's maps (plotters): one figure per model and metric (and the worst
+//! metric), with a panel per (row, column) value, a logarithmic colour bar of the relative error,
+//! contour lines at 1 %, 5 % and 20 %, and undefined cells in grey; the plant's stuck fraction
+//! and its convergence estimate likewise.
+
+use std::path::{Path, PathBuf};
+
+use plotters::prelude::*;
+use plotters::style::colors::colormaps::ViridisRGB;
+
+use crate::contour::segments;
+use crawler_sweep::maps::{short_name, Grid, Maps};
+use crawler_sweep::plan::Plan;
+
+/// Contour levels of the relative error, with their colours.
+pub const LEVELS: [(f64, RGBColor, &str); 3] = [
+    (0.01, WHITE, "white: 1 %"),
+    (0.05, BLACK, "black: 5 %"),
+    (0.20, RGBColor(230, 20, 20), "red: 20 %"),
+];
+
+/// Colour of undefined cells.
+pub const UNDEFINED: RGBColor = RGBColor(200, 200, 200);
+
+/// How values map to colours.
+#[derive(Debug, Clone, Copy)]
+enum Scale {
+    /// log10 |v| from `lo` to `hi` decades (values beyond are clamped); bar labels in percent.
+    LogPercent { lo: f64, hi: f64 },
+    /// v from 0 to 1.
+    Unit,
+}
+
+impl Scale {
+    fn position(&self, v: f64) -> f64 {
+        match *self {
+            Scale::LogPercent { lo, hi } => {
+                let l = v.abs().max(1e-300).log10();
+                ((l - lo) / (hi - lo)).clamp(0.0, 1.0)
+            }
+            Scale::Unit => v.clamp(0.0, 1.0),
+        }
+    }
+
+    fn ticks(&self) -> Vec<(f64, String)> {
+        match *self {
+            Scale::LogPercent { lo, hi } => {
+                let mut t = Vec::new();
+                let mut d = lo.ceil() as i32;
+                while d as f64 <= hi + 1e-9 {
+                    let pct = 10f64.powi(d + 2);
+                    let label = if pct >= 1.0 {
+                        format!("{pct:.0} %")
+                    } else {
+                        format!("{} %", trim_pct(pct))
+                    };
+                    t.push(((d as f64 - lo) / (hi - lo), label));
+                    d += 1;
+                }
+                if let Some(last) = t.last_mut() {
+                    last.1 = format!(">= {}", last.1);
+                }
+                t
+            }
+            Scale::Unit => (0..=4)
+                .map(|i| (i as f64 / 4.0, format!("{:.2}", i as f64 / 4.0)))
+                .collect(),
+        }
+    }
+}
+
+fn trim_pct(p: f64) -> String {
+    let s = format!("{p:.4}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+fn color(scale: Scale, v: f64) -> RGBColor {
+    ViridisRGB.get_color(scale.position(v) as f32)
+}
+
+/// One figure: a title, a note under it, what each panel shows.
+struct Figure<'a> {
+    file: String,
+    title: String,
+    note: String,
+    panels: &'a [Grid],
+    scale: Scale,
+    bar_label: &'a str,
+    contours: bool,
+}
+
+/// Draws every figure of `maps` into `dir`; returns the files written.
+pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    crate::paper::register_font()?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", dir.display()))?;
+    let err_scale = Scale::LogPercent { lo: -4.0, hi: 0.0 };
+    let mut written = Vec::new();
+    let worst: Vec<(String, Vec<Grid>)> = maps
+        .models
+        .iter()
+        .map(|m| (m.clone(), maps.worst(m)))
+        .collect();
+    let mut figs: Vec<Figure> = Vec::new();
+    for model in &maps.models {
+        let undefined = if model == "paper" {
+            "grey: undefined (eps C0 / (R0 alpha) > 1, no gamma: the body no longer slides back, it sticks)"
+        } else {
+            "grey: undefined (no periodic solution found)"
+        };
+        for &m in &maps.metrics {
+            figs.push(Figure {
+                file: format!("{}-{model}-{m}.png", plan.name),
+                title: format!(
+                    "{model} model: relative error of the {} against the plant",
+                    m.info().label
+                ),
+                note: format!(
+                    "|{model} / plant - 1|; contours {}; {undefined}",
+                    level_note()
+                ),
+                panels: &maps.errors[&(model.clone(), m)],
+                scale: err_scale,
+                bar_label: "relative error",
+                contours: true,
+            });
+        }
+        let w = &worst.iter().find(|(n, _)| n == model).expect("a model").1;
+        figs.push(Figure {
+            file: format!("{}-{model}-worst.png", plan.name),
+            title: format!(
+                "{model} model: largest relative error of V, P, M and sigma against the plant"
+            ),
+            note: format!(
+                "max over the metrics that have an error (a body at rest has no mileage); contours {}; {undefined}",
+                level_note()
+            ),
+            panels: w,
+            scale: err_scale,
+            bar_label: "relative error",
+            contours: true,
+        });
+    }
+    figs.push(Figure {
+        file: format!("{}-plant-stuck-fraction.png", plan.name),
+        title: "plant: stuck fraction (share of node-time at rest)".into(),
+        note: "the converged plant's steady window".into(),
+        panels: &maps.stuck,
+        scale: Scale::Unit,
+        bar_label: "stuck fraction",
+        contours: false,
+    });
+    figs.push(Figure {
+        file: format!("{}-plant-convergence.png", plan.name),
+        title: "plant: estimated discretisation error (N against 2N cells)".into(),
+        note: format!(
+            "largest over V, P, M and sigma of |value(2N) - value(N)| / |value(2N)|; contours {}",
+            level_note()
+        ),
+        panels: &maps.convergence,
+        scale: err_scale,
+        bar_label: "estimated error",
+        contours: true,
+    });
+    for f in &figs {
+        let path = dir.join(&f.file);
+        draw_figure(maps, f, &path)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+fn level_note() -> String {
+    LEVELS.iter().map(|l| l.2).collect::<Vec<_>>().join(", ")
+}
+
+fn axis_label(key: &str) -> String {
+    match short_name(key).as_str() {
+        "alpha" => "alpha = omega / omega_n".into(),
+        "eps" => "eps (dry-friction coefficient)".into(),
+        "f0" => "f0 (N)".into(),
+        "k" => "k (rad/m)".into(),
+        "omega" => "omega (rad/s)".into(),
+        other => other.to_string(),
+    }
+}
+
+fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
+    let (nr, nc) = (maps.nrows(), maps.ncols());
+    let (pw, ph) = (440u32, 360u32);
+    let (bar_w, head) = (130u32, 70u32);
+    let size = (nc as u32 * pw + bar_w, nr as u32 * ph + head);
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (top, body) = root.split_vertically(head);
+    top.draw(&Text::new(
+        f.title.clone(),
+        (14, 8),
+        ("sans-serif", 22).into_font().color(&BLACK),
+    ))?;
+    top.draw(&Text::new(
+        f.note.clone(),
+        (14, 40),
+        ("sans-serif", 14).into_font().color(&RGBColor(60, 60, 60)),
+    ))?;
+    let (grid_area, bar_area) = body.split_horizontally(nc as u32 * pw);
+    let panels = grid_area.split_evenly((nr, nc));
+    let xs: Vec<f64> = maps
+        .x
+        .numbers()
+        .into_iter()
+        .map(|v| v.expect("numeric"))
+        .collect();
+    let ys: Vec<f64> = maps
+        .y
+        .numbers()
+        .into_iter()
+        .map(|v| v.expect("numeric"))
+        .collect();
+    let edges = |v: &[f64]| -> Vec<f64> {
+        // cell edges halfway between values, half a step beyond the ends
+        let n = v.len();
+        if n == 1 {
+            return vec![v[0] - 0.5, v[0] + 0.5];
+        }
+        let mut e = Vec::with_capacity(n + 1);
+        e.push(v[0] - 0.5 * (v[1] - v[0]));
+        for i in 0..n - 1 {
+            e.push(0.5 * (v[i] + v[i + 1]));
+        }
+        e.push(v[n - 1] + 0.5 * (v[n - 1] - v[n - 2]));
+        e
+    };
+    let (ex, ey) = (edges(&xs), edges(&ys));
+    for (pi, area) in panels.iter().enumerate() {
+        let (ir, ic) = (pi / nc, pi % nc);
+        let caption = [
+            maps.rows.as_ref().map(|a| a.label(ir)),
+            maps.columns.as_ref().map(|a| a.label(ic)),
+        ]
+        .into_iter()
+        .flatten()
+        .collect::<Vec<_>>()
+        .join(", ");
+        let (x0, x1) = (ex[0].min(ex[ex.len() - 1]), ex[0].max(ex[ex.len() - 1]));
+        let (y0, y1) = (ey[0].min(ey[ey.len() - 1]), ey[0].max(ey[ey.len() - 1]));
+        let mut chart = ChartBuilder::on(area)
+            .caption(caption, ("sans-serif", 16))
+            .margin(8)
+            .x_label_area_size(38)
+            .y_label_area_size(46)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(axis_label(&maps.x.key))
+            .y_desc(axis_label(&maps.y.key))
+            .label_style(("sans-serif", 12))
+            .axis_desc_style(("sans-serif", 13))
+            .draw()?;
+        let grid = &f.panels[pi];
+        let nx = xs.len();
+        chart.draw_series((0..ys.len()).flat_map(|iy| {
+            let ex = &ex;
+            let ey = &ey;
+            (0..nx).map(move |ix| {
+                let c = match grid[iy * nx + ix] {
+                    Some(v) => color(f.scale, v),
+                    None => UNDEFINED,
+                };
+                Rectangle::new([(ex[ix], ey[iy]), (ex[ix + 1], ey[iy + 1])], c.filled())
+            })
+        }))?;
+        if f.contours {
+            let logs: Vec<Option<f64>> = grid
+                .iter()
+                .map(|v| v.map(|x| x.abs().max(1e-300).log10()))
+                .collect();
+            for (level, col, _) in LEVELS {
+                for [a, b] in segments(&xs, &ys, &logs, level.log10()) {
+                    chart.draw_series(std::iter::once(PathElement::new(
+                        vec![a, b],
+                        col.stroke_width(2),
+                    )))?;
+                }
+            }
+        }
+    }
+    // colour bar
+    let bar = bar_area.margin(60, 70, 16, 60);
+    let (bw, bh) = bar.dim_in_pixel();
+    let steps = 200;
+    for i in 0..steps {
+        let t = i as f64 / (steps - 1) as f64;
+        let y_top = ((1.0 - (i + 1) as f64 / steps as f64) * bh as f64) as i32;
+        let y_bot = ((1.0 - i as f64 / steps as f64) * bh as f64) as i32;
+        bar.draw(&Rectangle::new(
+            [(0, y_top), (28.min(bw as i32), y_bot)],
+            ViridisRGB.get_color(t as f32).filled(),
+        ))?;
+    }
+    bar.draw(&Rectangle::new(
+        [(0, 0), (28, bh as i32)],
+        BLACK.stroke_width(1),
+    ))?;
+    for (t, label) in f.scale.ticks() {
+        let y = ((1.0 - t) * bh as f64) as i32;
+        bar.draw(&PathElement::new(vec![(28, y), (34, y)], BLACK))?;
+        bar.draw(&Text::new(
+            label,
+            (38, y - 7),
+            ("sans-serif", 13).into_font(),
+        ))?;
+    }
+    bar_area.draw(&Text::new(
+        f.bar_label.to_string(),
+        (16, 24),
+        ("sans-serif", 13).into_font(),
+    ))?;
+    if matches!(f.scale, Scale::LogPercent { .. }) {
+        let y = bh as i32 + 14;
+        bar.draw(&Rectangle::new([(0, y), (28, y + 14)], UNDEFINED.filled()))?;
+        bar.draw(&Text::new(
+            "undefined",
+            (34, y),
+            ("sans-serif", 12).into_font(),
+        ))?;
+    }
+    root.present()
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    Ok(())
+}
