@@ -7,8 +7,8 @@ use crawler_physics::model_description::vr;
 use crawler_physics::params::{
     Discretisation, Numerics, PlantParams, CLOCK_COURANT_TOLERANCE, CLOCK_TICKS_ALWAYS_FIT,
 };
-use crawler_physics::scenario::{Overrides, Scenario, PAPER_TOML};
 use crawler_physics::report::state_digest;
+use crawler_physics::scenario::{Overrides, Scenario, PAPER_TOML};
 use crawler_physics::simulate::{simulate, SimulateOptions};
 use crawler_physics::slave::{Slave, StepStatus};
 use proptest::prelude::*;
@@ -67,7 +67,8 @@ fn on_a_nanosecond_clock_the_paper_step_is_whole_nanoseconds_just_below_courant_
         own.steps_until(Scenario::paper().t_end)
     );
     // the model description states the real step
-    let md = crawler_physics::model_description::ModelDescription::for_run(&s.plant, s.wave, s.t_end);
+    let md =
+        crawler_physics::model_description::ModelDescription::for_run(&s.plant, s.wave, s.t_end);
     assert_eq!(md.fixed_internal_step_size.to_bits(), d.step.to_bits());
     let e = md.default_experiment.unwrap();
     assert_eq!(e.step_size.to_bits(), d.step.to_bits());

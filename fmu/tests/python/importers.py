@@ -1,4 +1,4 @@
-"""Drives the plant's FMUs with importers we did not write (FMPy, ecos) for fmu/tests/importers.rs.
+"""Drives the plant's FMUs with importers we did not write (FMPy, ecos) for fmu/tests/importers/.
 
 Each command prints one JSON object on stdout; floats are written with repr() (shortest
 round-trip form), so the Rust side compares bits. Run with the project's venv:
@@ -21,6 +21,13 @@ Commands:
                                integer clock, STEP_NS nanoseconds a step, after setting the
                                parameters NAME (Integer or Real) to VALUE: final outputs, the
                                state digest; or {"ok": false, "error": ...} if a step failed
+  ssp-ecos SSP STEP_NS STEPS [SET]
+                               ecos loads the SSP file (plant and controller FMUs) with its
+                               parameter set SET ("crawler"; "-" for none) and runs STEPS steps
+                               of STEP_NS / 1e9 s: the plant's final outputs, state digest and
+                               wave inputs
+  ssp-libcosim SSP STEP_NS STEPS
+                               the same in libcosim, on its nanosecond clock
 """
 
 import json
@@ -355,6 +362,89 @@ def libcosim_run(path, step_ns, steps, assignments):
     }
 
 
+WAVE = ["wave_f0", "wave_k", "wave_omega", "wave_phase"]
+
+
+def plant_description(ssp):
+    """The plant FMU's model description, read from inside the SSP archive."""
+    import tempfile
+    import zipfile
+
+    from fmpy import read_model_description
+
+    with tempfile.TemporaryDirectory() as d:
+        with zipfile.ZipFile(ssp) as z:
+            z.extract("resources/crawler_physics.fmu", d)
+        return read_model_description(os.path.join(d, "resources", "crawler_physics.fmu"))
+
+
+def cmd_ssp_ecos(ssp, step_ns, steps, parameter_set):
+    from ecospy import EcosSimulation
+
+    with EcosSimulation(ssp_path=ssp, step_size=step_ns / 1e9) as sim:
+        if sim.init(parameter_set=None if parameter_set == "-" else parameter_set) is False:
+            raise SystemExit("ecos could not initialise the SSP system")
+        t = sim.step(steps)
+        n = sim.get_integer("plant::cells")
+        u = [sim.get_real(f"plant::u[{i + 1}]") for i in range(n)]
+        v = [sim.get_real(f"plant::v[{i + 1}]") for i in range(n)]
+        substeps = sim.get_integer("plant::substeps")
+        answer = {
+            "time": t,
+            "ticks_per_second": sim.get_integer("plant::ticks_per_second"),
+            "h": sim.get_real("plant::communication_step"),
+            "digest": digest(u, v, substeps * steps),
+            "outputs": {name: sim.get_real(f"plant::{name}") for name in OUTPUTS},
+            "wave": {name: sim.get_real(f"plant::{name}") for name in WAVE},
+        }
+        sim.terminate()
+    print(json.dumps(answer))
+
+
+def cmd_ssp_libcosim(ssp, step_ns, steps):
+    stdout = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        answer = ssp_libcosim_run(ssp, step_ns, steps)
+    finally:
+        sys.stdout.flush()
+        os.dup2(stdout, 1)
+        os.close(stdout)
+    print(json.dumps(answer))
+
+
+def ssp_libcosim_run(ssp, step_ns, steps):
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy._internal import get_last_error_message
+
+    log_output_level(CosimLogLevel.ERROR)
+    vs = variables(plant_description(ssp))
+    # the step in nanoseconds: libcosim would truncate a step in seconds (docs/fmu.md)
+    execution = CosimExecution.from_ssp_file(ssp_path=ssp, step_size=step_ns)
+    index = execution.slave_index_from_instance_name("plant")
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer=observer)
+    if not execution.step(step_count=steps):
+        return {"ok": False, "error": get_last_error_message()}
+    ref = lambda name: vs[name].valueReference  # noqa: E731
+    n = observer.last_integer_values(index, [ref("cells")])[0]
+    u = observer.last_real_values(index, [ref(f"u[{i + 1}]") for i in range(n)])
+    v = observer.last_real_values(index, [ref(f"v[{i + 1}]") for i in range(n)])
+    substeps, ticks = observer.last_integer_values(index, [ref("substeps"), ref("ticks_per_second")])
+    (h,) = observer.last_real_values(index, [ref("communication_step")])
+    return {
+        "ok": True,
+        "time_ns": execution.status().current_time,
+        "ticks_per_second": ticks,
+        "h": h,
+        "digest": digest(list(u), list(v), substeps * steps),
+        "outputs": dict(zip(OUTPUTS, observer.last_real_values(index, [ref(x) for x in OUTPUTS]))),
+        "wave": dict(zip(WAVE, observer.last_real_values(index, [ref(x) for x in WAVE]))),
+    }
+
+
 def main(argv):
     if len(argv) < 3:
         raise SystemExit(__doc__)
@@ -373,6 +463,10 @@ def main(argv):
         cmd_ecos(path, int(argv[3]))
     elif cmd == "libcosim":
         cmd_libcosim(path, int(argv[3]), int(argv[4]), argv[5:])
+    elif cmd == "ssp-ecos":
+        cmd_ssp_ecos(path, int(argv[3]), int(argv[4]), argv[5] if len(argv) > 5 else "crawler")
+    elif cmd == "ssp-libcosim":
+        cmd_ssp_libcosim(path, int(argv[3]), int(argv[4]))
     else:
         raise SystemExit(f"unknown command {cmd!r}\n{__doc__}")
 
