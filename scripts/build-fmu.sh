@@ -9,13 +9,16 @@
 #   --portable   build for any x86-64 CPU (baseline x86-64, about 2x slower plant) instead of
 #                the workspace's x86-64-v3 (AVX2, FMA: Intel Haswell / AMD Excavator, 2013, and
 #                later), in a separate target directory (target/portable)
-#   --prebuilt   do not run cargo: package the library and crawler-fmu already built in the
-#                target directory (the tests use this after `cargo test` has built them)
+#   --prebuilt   do not run cargo: package the libcrawler_fmu.so and crawler-fmu that
+#                `cargo build --release -p crawler-fmu` left in the target directory
+#                ($CARGO_TARGET_DIR or target; with --portable, its portable/ subdirectory and
+#                RUSTFLAGS="-C target-cpu=x86-64"). `cargo test` does not leave the shared library
+#                there; the tests run this script without --prebuilt.
 # Needs: Linux on x86-64, cargo, python3 (its zipfile module packs the archives).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-usage() { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
 portable=0
 prebuilt=0
 out=""
@@ -46,9 +49,21 @@ if [ "$prebuilt" = 0 ]; then
 fi
 lib="$target_dir/release/libcrawler_fmu.so"
 tool="$target_dir/release/crawler-fmu"
+how="CARGO_TARGET_DIR=$target_dir cargo build --release -p crawler-fmu"
+if [ "$portable" = 1 ]; then how="RUSTFLAGS=\"-C target-cpu=x86-64\" $how"; fi
 for f in "$lib" "$tool"; do
-  if [ ! -f "$f" ]; then echo "build-fmu: $f is missing (build without --prebuilt)" >&2; exit 1; fi
+  if [ ! -f "$f" ]; then
+    echo "build-fmu: $f is missing: build it with \`$how\`, or run this script without --prebuilt" >&2
+    exit 1
+  fi
 done
+# `cargo test` links the shared library into release/deps/ without copying it to release/: a
+# library there that differs from it is older than the last build (packaging it would ship old code)
+built="$target_dir/release/deps/libcrawler_fmu.so"
+if [ -f "$built" ] && ! cmp -s "$lib" "$built"; then
+  echo "build-fmu: $lib is older than $built (a later cargo test build): build it with \`$how\`, or run this script without --prebuilt" >&2
+  exit 1
+fi
 
 mkdir -p "$out"
 stage="$(mktemp -d)"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs the Debian packages the tests need (idempotent): libtbb12, which ecos (the `ecospy`
-# package, the second FMU importer of fmu/tests/importers.rs) links against.
+# package, the second FMU importer of fmu/tests/importers/) links against.
 # .ci/run calls it; CI runs as root on a fresh Debian machine. Elsewhere, run it with sudo.
 set -euo pipefail
 packages=(libtbb12)

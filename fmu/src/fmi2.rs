@@ -2,7 +2,8 @@
 //!
 //! FMI 2.0 has no arrays: element `i` (1-based) of the plant's array `a` is the scalar `a[i]`
 //! with value reference [`fmi2_element_reference`]`(a, i - 1)`, at the fixed N of the FMU.
-//! UInt64 variables are `Integer`s (every value fits 32 bits); the enumeration `boundary` is read
+//! UInt64 variables are `Integer`s (every value fits 32 bits; `ticks_per_second` is set through
+//! one, so at most 2^31 - 1 ticks per second here); the enumeration `boundary` is read
 //! and written as an `Integer`.
 
 #![allow(non_snake_case, clippy::missing_safety_doc)]
@@ -454,6 +455,16 @@ pub unsafe extern "C" fn fmi2SetInteger(
                     Err(_) => {
                         return i.error(&format!(
                             "fmi2SetInteger: invalid actuation_mode = {value}: allowed 0 (none), 1 (wave) or 2 (field)"
+                        ))
+                    }
+                },
+                vr::TICKS_PER_SECOND => match u64::try_from(value) {
+                    Ok(t) => i.slave.set_uint64(&[x], &[t]),
+                    Err(_) => {
+                        return i.error(&format!(
+                            "fmi2SetInteger: invalid ticks_per_second = {value}: allowed 0 (the plant's own clock) \
+                             or a clock of 1 to {} ticks per second (1000000000 for nanoseconds)",
+                            c_int::MAX
                         ))
                     }
                 },

@@ -945,3 +945,75 @@ fn debug_logging_and_discards_reach_the_logger_with_a_category() {
     }
     assert!(last_message(&log2).contains("not allowed in state Instantiated"));
 }
+
+#[test]
+fn the_integer_clock_is_set_through_either_api_and_a_nanosecond_master_is_then_accepted() {
+    let log = Log::default();
+    let own = h();
+    let ns: u64 = 1_000_000_000;
+    // what libcosim sends on its nanosecond clock: whole nanoseconds, converted per point
+    let step_ns = (own * 1e9).floor() as u64;
+    let times = |n: u64| {
+        let t = (n * step_ns) as f64 / 1e9;
+        (t, ((n + 1) * step_ns) as f64 / 1e9 - t)
+    };
+    unsafe {
+        // FMI 2.0: an Integer parameter; without it the step is refused and the message says
+        // which parameter makes it whole
+        let c = fmi2_started(&log, "own clock");
+        let (t, dt) = times(0);
+        assert_eq!(fmi2DoStep(c, t, dt, 1), ERROR);
+        assert!(last_message(&log).contains("ticks_per_second"));
+        fmi2FreeInstance(c);
+        let c = fmi2_new(&log, "nanoseconds");
+        assert_eq!(fmi2SetInteger(c, &vr::TICKS_PER_SECOND, 1, &-1), ERROR);
+        assert!(
+            last_message(&log).contains("ticks_per_second = -1"),
+            "{}",
+            last_message(&log)
+        );
+        fmi2FreeInstance(c);
+        let c = fmi2_new(&log, "nanoseconds");
+        assert_eq!(
+            fmi2SetInteger(c, &vr::TICKS_PER_SECOND, 1, &1_000_000_000),
+            OK
+        );
+        assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), OK);
+        assert_eq!(fmi2EnterInitializationMode(c), OK);
+        assert_eq!(fmi2ExitInitializationMode(c), OK);
+        let mut step = f64::NAN;
+        assert_eq!(fmi2GetReal(c, &vr::COMMUNICATION_STEP, 1, &mut step), OK);
+        assert_eq!(step.to_bits(), (step_ns as f64 / 1e9).to_bits());
+        for n in 0..3000 {
+            let (t, dt) = times(n);
+            assert_eq!(fmi2DoStep(c, t, dt, 1), OK, "{}", last_message(&log));
+        }
+        let mut back = 0;
+        assert_eq!(fmi2GetInteger(c, &vr::TICKS_PER_SECOND, 1, &mut back), OK);
+        assert_eq!(back, 1_000_000_000);
+        fmi2FreeInstance(c);
+
+        // FMI 3.0: a UInt64 parameter, equal to the in-process slave with the same clock
+        let i = fmi3_new(&log, "fmi3 nanoseconds");
+        assert_eq!(fmi3SetUInt64(i, &vr::TICKS_PER_SECOND, 1, &ns, 1), OK);
+        assert_eq!(fmi3EnterInitializationMode(i, 0, 0.0, 0.0, 0, 0.0), OK);
+        assert_eq!(fmi3ExitInitializationMode(i), OK);
+        let mut slave = crawler_fmu::defaults::slave("reference").unwrap();
+        slave.set_uint64(&[vr::TICKS_PER_SECOND], &[ns]).unwrap();
+        slave.enter_initialization_mode(0.0, None).unwrap();
+        slave.exit_initialization_mode().unwrap();
+        for n in 0..500 {
+            let (t, dt) = times(n);
+            assert_eq!(fmi3_step(i, t, dt), OK, "{}", last_message(&log));
+            assert_eq!(slave.do_step(t, dt), StepStatus::Ok);
+        }
+        assert_eq!(
+            fmi3_get(i, vr::U, cells()),
+            slave.float64_array(vr::U).unwrap().to_vec()
+        );
+        // fixed once stepping: setting it now is an error naming it
+        assert_eq!(fmi3SetUInt64(i, &vr::TICKS_PER_SECOND, 1, &ns, 1), ERROR);
+        assert!(last_message(&log).contains("ticks_per_second"));
+        fmi3FreeInstance(i);
+    }
+}

@@ -136,6 +136,8 @@ pub mod vr {
     pub const FILTER: u32 = 22;
     /// The pipe (friction map along it) as JSON text.
     pub const PIPE: u32 = 23;
+    /// Integer clock H must fit, ticks per second (0: the plant's own clock).
+    pub const TICKS_PER_SECOND: u32 = 24;
     /// Internal step dt, s.
     pub const DT: u32 = 30;
     /// Internal steps per communication step.
@@ -219,6 +221,7 @@ pub fn variable_name(r: u32) -> Option<(&'static str, VarType)> {
         vr::BLOCK => ("block", Float64),
         vr::FILTER => ("filter", Float64),
         vr::PIPE => ("pipe", String),
+        vr::TICKS_PER_SECOND => ("ticks_per_second", UInt64),
         vr::DT => ("dt", Float64),
         vr::SUBSTEPS => ("substeps", UInt64),
         vr::DX => ("dx", Float64),
@@ -523,6 +526,16 @@ impl ModelDescription {
                     serde_json::to_string(&params.pipe).expect("the pipe serializes"),
                 )),
                 "Friction along the pipe, JSON of the scenario's [pipe] section: start (m), disclose, nominal, resolution (m), features (patch/ramp/texture)",
+            ),
+            scalar(
+                "ticks_per_second",
+                vr::TICKS_PER_SECOND,
+                UInt64,
+                Parameter,
+                Fixed,
+                "",
+                Some(Start::UInt(nm.ticks_per_second.unwrap_or(0))),
+                "Integer clock of the master, ticks per second (1000000000 for libcosim's nanoseconds): communication_step is then a whole number of ticks and dt = communication_step / substeps, the Courant number at most 1e-6 below courant; 0: the plant's own clock (dt at the Courant bound)",
             ),
             calculated("dt", vr::DT, Float64, "s", "Internal time step"),
             calculated("substeps", vr::SUBSTEPS, UInt64, "", "Internal steps per communication step"),

@@ -131,10 +131,34 @@ pub struct Numerics {
     /// centred viscous term; friction switching feeds it. 0 turns the filter off.
     #[serde(default = "default_filter")]
     pub filter: f64,
+    /// An integer clock the communication step must fit, ticks per second (1/s): for a master
+    /// that counts time in whole ticks (libcosim counts nanoseconds: `1_000_000_000`). `H` is
+    /// then a whole number of ticks, the largest whose `H / substeps` keeps the Courant number
+    /// at or below `courant`, and `dt = H / substeps`: the Courant number is lowered by less
+    /// than one tick over `H`, at most [`CLOCK_COURANT_TOLERANCE`] (relative), see
+    /// [`PlantParams::discretisation`]. `None` (the default): the plant's own clock, `dt` at the
+    /// Courant bound and `H = m dt`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ticks_per_second: Option<u64>,
 }
 
 /// Default strength of the grid filter (see [`Numerics::filter`] and `docs/numerics.md`).
 pub const DEFAULT_FILTER: f64 = 0.1;
+
+/// How far below its target an integer clock ([`Numerics::ticks_per_second`]) may put the
+/// Courant number, relative. `H` is rounded down to whole ticks, which lowers `dt` and the
+/// Courant number by less than one tick over `H`: a step of at least [`CLOCK_TICKS_ALWAYS_FIT`]
+/// ticks always fits, a shorter one when its rounding happens to be small enough. At resonance
+/// the metrics move linearly with the shortfall, by up to about `1e3` times it (relative) at 128
+/// cells per wavelength (docs/numerics.md, "Integer clocks").
+pub const CLOCK_COURANT_TOLERANCE: f64 = 1e-6;
+
+/// Ticks per communication step that always keep the Courant number within
+/// [`CLOCK_COURANT_TOLERANCE`] of its target (1 ms at nanoseconds).
+pub const CLOCK_TICKS_ALWAYS_FIT: u64 = 1_000_000;
+
+/// Fastest integer clock, ticks per second (2^53: a tick count stays exact in a double).
+pub const MAX_TICKS_PER_SECOND: u64 = 1 << 53;
 
 fn default_filter() -> f64 {
     DEFAULT_FILTER
@@ -167,6 +191,18 @@ impl Numerics {
                 self.filter,
                 "0 <= filter < 1 (share of the grid-scale mode removed per step)",
             ));
+        }
+        if let Some(t) = self.ticks_per_second {
+            if !(1..=MAX_TICKS_PER_SECOND).contains(&t) {
+                return Err(ParamError::new(
+                    "numerics.ticks_per_second",
+                    t,
+                    format!(
+                        "an integer clock of 1 to {MAX_TICKS_PER_SECOND} ticks per second \
+                         (1000000000 for nanoseconds), or no key for the plant's own clock"
+                    ),
+                ));
+            }
         }
         Ok(())
     }
@@ -241,6 +277,9 @@ pub struct Discretisation {
     pub step: f64,
     /// Achieved Courant number `c dt / dx`.
     pub courant: f64,
+    /// `H` in ticks of the integer clock [`Numerics::ticks_per_second`], if there is one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ticks: Option<u64>,
 }
 
 impl Discretisation {
@@ -265,6 +304,12 @@ impl PlantParams {
     /// The grid spacing and the internal step: `dt = courant dx / c` (rounded down if rounding
     /// made `c dt / dx` exceed `courant`), and the communication step `H = m dt` with `m` the
     /// whole number nearest to `numerics.step / dt` (at least 1).
+    ///
+    /// With an integer clock of `r` ticks per second ([`Numerics::ticks_per_second`]), `m` is
+    /// chosen the same way, then `H` is the largest whole number of ticks `n` with
+    /// `c (H / m) / dx <= courant` (`H = n / r`, the double a master that counts ticks computes),
+    /// and `dt = H / m`. The Courant number falls short of `courant` by less than `1 / n` of it,
+    /// and the clock is refused if the shortfall exceeds [`CLOCK_COURANT_TOLERANCE`].
     pub fn discretisation(&self) -> Result<Discretisation, ParamError> {
         let dx = self.length / self.numerics.cells as f64;
         let c = self.body.wave_speed();
@@ -284,12 +329,82 @@ impl PlantParams {
             ));
         }
         let substeps = (ratio.round() as u64).max(1);
+        if let Some(rate) = self.numerics.ticks_per_second {
+            return self.clocked(dx, c, dt, substeps, rate);
+        }
         Ok(Discretisation {
             dx,
             dt,
             substeps,
             step: substeps as f64 * dt,
             courant: c * dt / dx,
+            ticks: None,
+        })
+    }
+
+    /// The discretisation on an integer clock of `rate` ticks per second: `substeps` internal
+    /// steps of at most `dt_max` (the Courant bound's step) per communication step of whole
+    /// ticks (see [`Self::discretisation`]).
+    fn clocked(
+        &self,
+        dx: f64,
+        c: f64,
+        dt_max: f64,
+        substeps: u64,
+        rate: u64,
+    ) -> Result<Discretisation, ParamError> {
+        let m = substeps as f64;
+        let courant = self.numerics.courant;
+        let bound = m * dt_max * rate as f64;
+        if bound > MAX_TICKS_PER_SECOND as f64 {
+            return Err(ParamError::new(
+                "numerics.ticks_per_second",
+                rate,
+                format!(
+                    "a clock of at most {MAX_TICKS_PER_SECOND} ticks per communication step \
+                     (H = {:e} s)",
+                    m * dt_max
+                ),
+            ));
+        }
+        // H and dt of `ticks`, if its internal step keeps the Courant bound (monotone in
+        // `ticks`: every operation is a correctly rounded, monotone one)
+        let keeps = |ticks: u64| {
+            let step = ticks as f64 / rate as f64;
+            let dt = step / m;
+            (c * dt / dx <= courant).then_some((step, dt))
+        };
+        // the float `bound` is within a few ulps of the exact one: move to the largest count
+        // that keeps the bound
+        let mut ticks = bound.floor() as u64;
+        while keeps(ticks + 1).is_some() {
+            ticks += 1;
+        }
+        while keeps(ticks).is_none() {
+            ticks -= 1;
+        }
+        let (step, dt) = keeps(ticks).expect("checked by the loop");
+        let achieved = c * dt / dx;
+        if achieved < courant * (1.0 - CLOCK_COURANT_TOLERANCE) {
+            return Err(ParamError::new(
+                "numerics.ticks_per_second",
+                rate,
+                format!(
+                    "a clock on which H = {substeps} internal steps of at most dt = {dt_max:e} s \
+                     (Courant number {courant}) rounds down to whole ticks lowering the Courant \
+                     number by at most {CLOCK_COURANT_TOLERANCE:e} (relative); H = {ticks} ticks \
+                     lowers it to {achieved:.9}: use a clock with at least \
+                     {CLOCK_TICKS_ALWAYS_FIT} ticks per H (always fits), or a longer numerics.step"
+                ),
+            ));
+        }
+        Ok(Discretisation {
+            dx,
+            dt,
+            substeps,
+            step,
+            courant: c * dt / dx,
+            ticks: Some(ticks),
         })
     }
 

@@ -98,6 +98,7 @@ struct RawNumerics {
     settle: f64,
     block: Option<f64>,
     filter: f64,
+    ticks_per_second: Option<u64>,
 }
 
 impl Default for RawNumerics {
@@ -110,6 +111,7 @@ impl Default for RawNumerics {
             settle: 5.0,
             block: None,
             filter: crate::params::DEFAULT_FILTER,
+            ticks_per_second: None,
         }
     }
 }
@@ -492,6 +494,7 @@ impl RawScenario {
             min_stick_periods,
             block,
             filter: self.numerics.filter,
+            ticks_per_second: self.numerics.ticks_per_second,
         };
         let plant = PlantParams {
             body,

@@ -389,12 +389,22 @@ impl Slave {
         if !(h.is_finite() && (1.0..1e15).contains(&n) && (h - n * step).abs() <= tol.max(1e-9 * h))
         {
             let d = self.plant.discretisation();
+            let clock = match d.ticks {
+                Some(n) => format!(
+                    ", {n} ticks of the clock ticks_per_second = {}",
+                    self.params.numerics.ticks_per_second.unwrap_or(0)
+                ),
+                None => "; a master that counts time in whole ticks (libcosim: nanoseconds) \
+                         sets the parameter ticks_per_second (1000000000) to make H a whole \
+                         number of them"
+                    .into(),
+            };
             let e = ParamError::new(
                 "h",
                 h,
                 format!(
                     "a whole number of communication steps H = {step:e} s (each H is {} internal \
-                     steps of dt = {:e} s; the plant's step is fixed)",
+                     steps of dt = {:e} s; the plant's step is fixed{clock})",
                     d.substeps, d.dt
                 ),
             );
@@ -439,7 +449,7 @@ impl Slave {
         let inputs = matches!(self.state, Instantiated | InitializationMode | StepMode);
         match vr {
             vr::CELLS | vr::BOUNDARY => structural,
-            vr::LENGTH | vr::AREA..=vr::PIPE => params,
+            vr::LENGTH | vr::AREA..=vr::TICKS_PER_SECOND => params,
             vr::ACTUATION_MODE..=vr::MUSCLE_FORCE => inputs,
             _ => false,
         }
@@ -541,6 +551,7 @@ impl Slave {
                 vr::CELLS => Ok(self.params.numerics.cells as u64),
                 vr::SUBSTEPS => Ok(self.plant.discretisation().substeps),
                 vr::ACTUATION_MODE => Ok(self.inputs.mode),
+                vr::TICKS_PER_SECOND => Ok(self.params.numerics.ticks_per_second.unwrap_or(0)),
                 vr::STUCK_NODES => Ok(self.plant.outputs().stuck_nodes),
                 _ => Err(SlaveError::UnknownReference {
                     vr: r,
@@ -614,7 +625,8 @@ impl Slave {
         Ok(())
     }
 
-    /// `fmi3SetUInt64`: the actuation mode; `cells` in Configuration Mode.
+    /// `fmi3SetUInt64`: the actuation mode; `ticks_per_second` before step mode; `cells` in
+    /// Configuration Mode.
     pub fn set_uint64(&mut self, vrs: &[u32], values: &[u64]) -> Result<(), SlaveError> {
         if vrs.len() != values.len() {
             return self.fail(SlaveError::WrongCount {
@@ -624,7 +636,7 @@ impl Slave {
         }
         for (&r, &x) in vrs.iter().zip(values) {
             match r {
-                vr::ACTUATION_MODE | vr::CELLS if !self.settable(r) => {
+                vr::ACTUATION_MODE | vr::CELLS | vr::TICKS_PER_SECOND if !self.settable(r) => {
                     return self.not_settable(r, "UInt64")
                 }
                 vr::ACTUATION_MODE => {
@@ -641,6 +653,11 @@ impl Slave {
                     let cells = usize::try_from(x).unwrap_or(usize::MAX);
                     let mut params = self.params.clone();
                     params.numerics.cells = cells;
+                    self.replace_params(params)?;
+                }
+                vr::TICKS_PER_SECOND => {
+                    let mut params = self.params.clone();
+                    params.numerics.ticks_per_second = (x > 0).then_some(x);
                     self.replace_params(params)?;
                 }
                 vr::SUBSTEPS | vr::STUCK_NODES => return self.not_settable(r, "UInt64"),
