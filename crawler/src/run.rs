@@ -61,6 +61,12 @@ pub struct RunArgs {
     /// that reaches the run's socket can then join, read and disturb it. For comparisons only.
     #[arg(long)]
     no_auth: bool,
+    /// Start this command as the controller instead of `crawler controller run` (any external
+    /// controller, e.g. ".venv/bin/python examples/python_controller.py --alpha 0.5"): split
+    /// into words as a shell would, started directly, given the run's `--run-id` and
+    /// `--credential PATH` (or `--no-auth`) after its own words.
+    #[arg(long, value_name = "COMMAND", conflicts_with_all = ["policy", "params"])]
+    controller_cmd: Option<String>,
     /// More arguments for the controller (after `--`).
     #[arg(last = true)]
     controller_args: Vec<String>,
@@ -100,7 +106,7 @@ struct Plan {
 }
 
 impl Plan {
-    fn of(a: &RunArgs, programs: &Programs, run_id: &str, auth: &Auth) -> Self {
+    fn of(a: &RunArgs, programs: &Programs, run_id: &str, auth: &Auth) -> anyhow::Result<Self> {
         let viewer_exe = std::env::current_dir()
             .map(|d| d.join(".venv/bin/rerun"))
             .ok()
@@ -110,7 +116,19 @@ impl Plan {
             (None, true) => Some(None),
             (None, false) => None,
         };
-        Self {
+        let controller = match &a.controller_cmd {
+            Some(cmd) => crate::external::invocation(cmd, run_id, auth, &a.controller_args)?,
+            None => programs.controller(&ControllerRun {
+                run_id,
+                policy: &a.policy,
+                params: &a.params,
+                scenario: &a.scenario,
+                wait_timeout: 60.0,
+                auth,
+                extra: &a.controller_args,
+            }),
+        };
+        Ok(Self {
             plant: programs.plant(&PlantRun {
                 run_id,
                 scenario: &a.scenario,
@@ -120,15 +138,7 @@ impl Plan {
                 json: false,
                 auth,
             }),
-            controller: programs.controller(&ControllerRun {
-                run_id,
-                policy: &a.policy,
-                params: &a.params,
-                scenario: &a.scenario,
-                wait_timeout: 60.0,
-                auth,
-                extra: &a.controller_args,
-            }),
+            controller,
             recorder: programs.recorder(&RecorderRun {
                 run_id,
                 out: &a.out,
@@ -138,13 +148,17 @@ impl Plan {
                 viewer,
                 viewer_exe: viewer_exe.as_deref(),
             }),
-        }
+        })
     }
 
     /// Every input is checked by the program that owns it before anything starts.
     fn check(&self, a: &RunArgs) -> anyhow::Result<()> {
         preflight::check_child("plant", &self.plant.check())?;
-        preflight::check_child("controller", &self.controller.check())?;
+        // an external controller's program was found when the plan was made; its own inputs
+        // are its own to check when it starts
+        if a.controller_cmd.is_none() {
+            preflight::check_child("controller", &self.controller.check())?;
+        }
         if let Err(e) = preflight::check_child("recorder", &self.recorder.check()) {
             if let Some(url) = &a.view_url {
                 eprintln!("crawler: the recorder's --connect above is --view-url = {url}");
@@ -179,7 +193,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         Some(c) => Auth::Credential(c.path.clone()),
         None => Auth::Open,
     };
-    let plan = Plan::of(&a, &programs, &run_id, &auth);
+    let plan = Plan::of(&a, &programs, &run_id, &auth)?;
     plan.check(&a)?;
     if interrupted.load(Ordering::SeqCst) {
         eprintln!("crawler: interrupted before the run started");
