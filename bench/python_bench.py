@@ -79,10 +79,10 @@ def rust_rate(cells: int, seconds: float) -> float:
     return n / (time.perf_counter() - t0)
 
 
-def env_rate(num: int, cells: int, seconds: float) -> float:
-    """Crawler communication steps per second of the environment (frame_skip 1), summed over
-    the crawlers of a vector (num > 1) or of one environment."""
-    kw = dict(action="wave", frame_skip=1, cells=cells, t_end=1e4)
+def env_rate(num: int, cells: int, seconds: float, frame_skip: int = 1) -> float:
+    """Crawler communication steps per second of the environment, summed over the crawlers of
+    a vector (num > 1) or of one environment."""
+    kw = dict(action="wave", frame_skip=frame_skip, cells=cells, t_end=1e4)
     if num == 1:
         env = SoftCrawlerEnv(**kw)
         env.reset(seed=0)
@@ -98,7 +98,7 @@ def env_rate(num: int, cells: int, seconds: float) -> float:
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < seconds:
             run(100)
-            n += 100
+            n += 100 * frame_skip
         return n / (time.perf_counter() - t0)
     vec = SoftCrawlerVectorEnv(num, **kw)
     vec.reset(seed=0)
@@ -111,7 +111,7 @@ def env_rate(num: int, cells: int, seconds: float) -> float:
     while time.perf_counter() - t0 < seconds:
         for _ in range(10):
             vec.step(actions)
-        n += 10 * num
+        n += 10 * num * frame_skip
     return n / (time.perf_counter() - t0)
 
 
@@ -121,6 +121,8 @@ def main() -> int:
     ap.add_argument("--cells", type=int, default=512)
     ap.add_argument("--t-end", type=float, default=20.0)
     ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--frame-skip", type=int, default=1,
+                    help="communication steps per environment step (1: every step)")
     args = ap.parse_args()
     print(f"python {sys.version.split()[0]}, softcrawler {softcrawler.__version__}, "
           f"{os.cpu_count()} cores (shared)")
@@ -129,11 +131,12 @@ def main() -> int:
     rust, one, vec = [], [], []
     for _ in range(3):
         rust.append(rust_rate(args.cells, args.seconds))
-        one.append(env_rate(1, args.cells, args.seconds))
-        vec.append(env_rate(64, args.cells, args.seconds))
+        one.append(env_rate(1, args.cells, args.seconds, args.frame_skip))
+        vec.append(env_rate(64, args.cells, args.seconds, args.frame_skip))
     r, o, v = (statistics.median(x) for x in (rust, one, vec))
     cores = os.cpu_count() or 1
-    print(f"communication steps per second, {args.cells} cells, median of 3 interleaved rounds:")
+    print(f"communication steps per second, {args.cells} cells, frame_skip {args.frame_skip}, "
+          "median of 3 interleaved rounds:")
     print(f"  Rust loop, one crawler (Plant.step(500)):   {r:10.0f}")
     print(f"  one environment (env.step per step):        {o:10.0f}  "
           f"Python's overhead per step {100 * (r / o - 1):.1f} %")
