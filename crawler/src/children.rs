@@ -22,7 +22,8 @@ pub enum Auth {
 }
 
 impl Auth {
-    fn args(&self) -> Vec<String> {
+    /// The network flags of a run's process: `--credential PATH`, nothing, or `--no-auth`.
+    pub fn args(&self) -> Vec<String> {
         match self {
             Auth::Credential(p) => vec!["--credential".into(), p.display().to_string()],
             Auth::PlantMade => Vec::new(),

@@ -7,10 +7,12 @@
 //! - [`run`]: `crawler run`; [`children`]: the run's processes and their command lines, built in
 //!   one place; [`supervise`]: starting, watching and stopping them;
 //! - [`compare`]: `crawler compare`; [`sweep`]: `crawler sweep` (also the `crawler-sweep` binary);
-//! - [`preflight`]: what is checked before anything starts.
+//! - [`preflight`]: what is checked before anything starts; [`external`]: an external
+//!   controller (`crawler run --controller-cmd`).
 
 pub mod children;
 pub mod compare;
+pub mod external;
 pub mod preflight;
 pub mod run;
 pub mod supervise;

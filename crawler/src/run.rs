@@ -72,6 +72,12 @@ pub struct RunArgs {
     /// time, with the policy's default parameters and the run's scenario).
     #[arg(long, value_name = "POLICY@SECONDS")]
     then: Vec<String>,
+    /// Start this command as the controller instead of `crawler controller run` (any external
+    /// controller, e.g. ".venv/bin/python examples/python_controller.py --alpha 0.5"): split
+    /// into words as a shell would, started directly, given the run's `--run-id` and
+    /// `--credential PATH` (or `--no-auth`) after its own words.
+    #[arg(long, value_name = "COMMAND", conflicts_with_all = ["policy", "params"])]
+    controller_cmd: Option<String>,
     /// More arguments for the controller (after `--`).
     #[arg(last = true)]
     controller_args: Vec<String>,
@@ -158,7 +164,13 @@ struct Plan {
 }
 
 impl Plan {
-    fn of(a: &RunArgs, then: &[Then], programs: &Programs, run_id: &str, auth: &Auth) -> Self {
+    fn of(
+        a: &RunArgs,
+        then: &[Then],
+        programs: &Programs,
+        run_id: &str,
+        auth: &Auth,
+    ) -> anyhow::Result<Self> {
         let viewer_exe = std::env::current_dir()
             .map(|d| d.join(".venv/bin/rerun"))
             .ok()
@@ -168,17 +180,9 @@ impl Plan {
             (None, true) => Some(None),
             (None, false) => None,
         };
-        Self {
-            plant: programs.plant(&PlantRun {
-                run_id,
-                scenario: &a.scenario,
-                resume: a.resume.as_deref(),
-                wait_timeout: 120.0,
-                checkpoint: None,
-                json: false,
-                auth,
-            }),
-            controller: programs.controller(&ControllerRun {
+        let controller = match &a.controller_cmd {
+            Some(cmd) => crate::external::invocation(cmd, run_id, auth, &a.controller_args)?,
+            None => programs.controller(&ControllerRun {
                 run_id,
                 policy: &a.policy,
                 params: &a.params,
@@ -188,6 +192,18 @@ impl Plan {
                 take_over_at: None,
                 extra: &a.controller_args,
             }),
+        };
+        Ok(Self {
+            plant: programs.plant(&PlantRun {
+                run_id,
+                scenario: &a.scenario,
+                resume: a.resume.as_deref(),
+                wait_timeout: 120.0,
+                checkpoint: None,
+                json: false,
+                auth,
+            }),
+            controller,
             then: then
                 .iter()
                 .map(|t| {
@@ -212,13 +228,17 @@ impl Plan {
                 viewer,
                 viewer_exe: viewer_exe.as_deref(),
             }),
-        }
+        })
     }
 
     /// Every input is checked by the program that owns it before anything starts.
     fn check(&self, a: &RunArgs) -> anyhow::Result<()> {
         preflight::check_child("plant", &self.plant.check())?;
-        preflight::check_child("controller", &self.controller.check())?;
+        // an external controller's program was found when the plan was made; its own inputs
+        // are its own to check when it starts
+        if a.controller_cmd.is_none() {
+            preflight::check_child("controller", &self.controller.check())?;
+        }
         for t in &self.then {
             preflight::check_child("controller", &t.check())?;
         }
@@ -256,7 +276,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         Some(c) => Auth::Credential(c.path.clone()),
         None => Auth::Open,
     };
-    let plan = Plan::of(&a, &then, &programs, &run_id, &auth);
+    let plan = Plan::of(&a, &then, &programs, &run_id, &auth)?;
     plan.check(&a)?;
     if interrupted.load(Ordering::SeqCst) {
         eprintln!("crawler: interrupted before the run started");

@@ -85,6 +85,50 @@ pub fn python() -> PathBuf {
         .unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The venv's Python with the project's package `softcrawler` installed from the current sources
+/// (`scripts/setup-python.sh --package`, i.e. `pip install ./python`: maturin builds the
+/// extension with cargo in the workspace's target dir), once per test process. The Python
+/// examples import it. Call it before starting a plant that waits for a Python controller: the
+/// first build of the extension takes minutes.
+pub fn softcrawler() -> PathBuf {
+    static DONE: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
+    let py = python();
+    let done = DONE.get_or_init(|| {
+        let started = Instant::now();
+        let mut cmd = Command::new("bash");
+        cmd.arg(repo_root().join("scripts/setup-python.sh"))
+            .arg("--package")
+            .current_dir(repo_root());
+        // the test's own cargo variables are not the nested build's
+        for (k, _) in std::env::vars_os() {
+            let k = k.to_string_lossy().into_owned();
+            if k.starts_with("CARGO_") && k != "CARGO_HOME" && k != "CARGO_TARGET_DIR" {
+                cmd.env_remove(k);
+            }
+        }
+        let out = cmd
+            .output()
+            .map_err(|e| format!("cannot run scripts/setup-python.sh --package: {e}"))?;
+        eprintln!(
+            "softcrawler installed in {:.1} s",
+            started.elapsed().as_secs_f64()
+        );
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(format!(
+                "pip install ./python failed:\n{}\n{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            ))
+        }
+    });
+    if let Err(e) = done {
+        panic!("{e}");
+    }
+    py
+}
+
 static COUNTER: AtomicU32 = AtomicU32::new(0);
 
 /// An isolated run: its own id, its own socket, its own temporary directory.
@@ -272,7 +316,8 @@ impl Run {
         self.python_example("python_controller.py", args)
     }
 
-    /// The Python example `examples/<script>` with `args` (network flags added).
+    /// The Python example `examples/<script>` with `args` (network flags added), run by the
+    /// venv's Python with `softcrawler` installed ([`softcrawler`]).
     pub fn python_example(&self, script: &str, args: &[&str]) -> Proc {
         let mut a: Vec<String> = vec![repo_root()
             .join("examples")
@@ -281,7 +326,7 @@ impl Run {
             .to_string()];
         a.extend(self.net());
         a.extend(args.iter().map(|s| s.to_string()));
-        Proc::spawn("python", &python(), &a, self.dir.path())
+        Proc::spawn("python", &softcrawler(), &a, self.dir.path())
     }
 }
 

@@ -180,8 +180,9 @@ fn two_runs_at_once_do_not_cross_talk() {
 
 #[test]
 fn the_python_controller_gives_the_rust_wave_trajectory() {
-    // the venv first (a fresh clone installs it): the plant's wait for a controller is bounded
-    crawler_e2e::python();
+    // the venv and the package first (a fresh clone builds it): the plant's wait for a
+    // controller is bounded
+    crawler_e2e::softcrawler();
     let run = Run::new("py");
     let plant = run.plant(&["--t-end", "6", "--json"]);
     let py = run.python_controller(&["--f0", "0.5", "--alpha", "0.5"]);

@@ -42,6 +42,9 @@ impl Policy for StickReflex {
 
 #[test]
 fn the_python_reflex_controller_closes_the_loop_as_its_law_says() {
+    // the venv and the package first (a fresh clone builds it): the plant's wait for a
+    // controller is bounded
+    crawler_e2e::softcrawler();
     let run = Run::new("pyreflex");
     // the shortest run the scenario allows: the transient (5 s) and one forcing period
     let plant = run.plant(&["--eps", "1", "--cells", "128", "--t-end", "5.2", "--json"]);

@@ -140,8 +140,27 @@ impl Link {
     }
 }
 
-/// Runs the controller until the run ends.
+/// Builds the controller's policy once the plant has told its body, friction and grid.
+pub type BuildPolicy<'a> = Box<
+    dyn FnOnce(&crawler_policies::Context) -> anyhow::Result<Box<dyn crawler_policies::Policy>>
+        + Send
+        + 'a,
+>;
+
+/// Runs the controller until the run ends, with the registered policy `opts.policy`.
 pub fn run(opts: ClientOptions, interrupt: Receiver<Interrupt>) -> anyhow::Result<ClientOutcome> {
+    let (name, params) = (opts.policy.clone(), opts.params.clone());
+    let build: BuildPolicy<'_> = Box::new(move |ctx| crawler_policies::build(&name, ctx, &params));
+    run_with(opts, build, interrupt)
+}
+
+/// Runs the controller until the run ends, with the policy `build` makes (a policy that is not
+/// registered: the Python package's); `opts.policy` and `opts.params` are not used.
+pub fn run_with(
+    opts: ClientOptions,
+    build: BuildPolicy<'_>,
+    interrupt: Receiver<Interrupt>,
+) -> anyhow::Result<ClientOutcome> {
     let keys = RunKeys::new(&opts.network.run_id)?;
     let id = crawler_transport::process_id();
     let deadline = Instant::now() + opts.wait_timeout;
@@ -225,7 +244,7 @@ pub fn run(opts: ClientOptions, interrupt: Receiver<Interrupt>) -> anyhow::Resul
     } else {
         link
     };
-    let outcome = serve(&link, &keys, &opts, &interrupt, (info, plant));
+    let outcome = serve(&link, &keys, &opts, build, &interrupt, (info, plant));
     link.close();
     outcome
 }
@@ -273,6 +292,7 @@ fn serve(
     link: &Link,
     keys: &RunKeys,
     opts: &ClientOptions,
+    build: BuildPolicy<'_>,
     interrupt: &Receiver<Interrupt>,
     (info, plant): (ModelInfo, ProcessId),
 ) -> anyhow::Result<ClientOutcome> {
@@ -295,7 +315,7 @@ fn serve(
     };
 
     let ctx = context_of(&info, &opts.scenario);
-    let policy = crawler_policies::build(&opts.policy, &ctx, &opts.params)?;
+    let policy = build(&ctx)?;
     eprintln!(
         "crawler-controller: plant {plant} found ({} cells, L = {} m, H = {} s); policy {}",
         info.cells,

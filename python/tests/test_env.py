@@ -1,0 +1,115 @@
+"""The Gymnasium environment: check_env, the vector environment equals N single ones, seeding,
+and the same execution loop and briefing as the other routes."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import softcrawler
+from softcrawler.env import PipeFamily, SoftCrawlerEnv, SoftCrawlerVectorEnv
+
+FAST = dict(cells=64, t_end=6.0)
+FAMILY = PipeFamily(eps=(0.1, 0.6), n_f=(0.3, 0.8), eps_std=0.05, correlation=0.2)
+
+
+@pytest.mark.parametrize("action", ["wave", "field"])
+def test_check_env_passes(action):
+    env = gym.make("SoftCrawler-v0", action=action, frame_skip=20, pipe_family=FAMILY, **FAST)
+    check_env(env.unwrapped, skip_render_check=True)
+    check_env(env, skip_render_check=True)
+
+
+def test_the_vector_environment_equals_n_single_ones_step_for_step():
+    n, seed = 5, 11
+    kw = dict(action="wave", frame_skip=25, pipe_family=FAMILY, cells=64, t_end=5.2)
+    vec = SoftCrawlerVectorEnv(n, **kw)
+    singles = [SoftCrawlerEnv(**kw) for _ in range(n)]
+    obs, _ = vec.reset(seed=seed)
+    single_obs = [e.reset(seed=seed + i)[0] for i, e in enumerate(singles)]
+    assert np.array_equal(obs, np.stack(single_obs))
+    rng = np.random.default_rng(3)
+    lo, hi = vec.single_action_space.low, vec.single_action_space.high
+    done = np.zeros(n, dtype=bool)
+    ended = 0
+    for _ in range(300):
+        actions = rng.uniform(lo, hi, size=(n, 3))
+        actions[:, 0] *= 0.3
+        obs, rew, term, trunc, _ = vec.step(actions)
+        for i, e in enumerate(singles):
+            if done[i]:
+                o, _ = e.reset()  # next_step autoreset: this step resets, reward 0
+                r, te, tr = 0.0, False, False
+            else:
+                o, r, te, tr, _ = e.step(actions[i])
+            assert np.array_equal(obs[i], o) and rew[i] == r and term[i] == te and trunc[i] == tr, i
+            assert vec.state_digest(i) == e.state_digest
+        done = term | trunc
+        ended += int(done.sum())
+    assert ended > 0, "no episode ended: autoreset untested"
+
+
+def test_a_seed_makes_an_episode_reproducible_and_draws_the_pipe():
+    env = SoftCrawlerEnv(pipe_family=FAMILY, frame_skip=50, **FAST)
+    env.reset(seed=7)
+    a = env.scenario
+    env.reset(seed=8)
+    b = env.scenario
+    env.reset(seed=7)
+    assert env.scenario == a and a != b
+    fr = a.plant["friction"]
+    assert 0.1 <= fr["eps"] <= 0.6 and a.plant["pipe"]["features"][-1]["kind"] == "texture"
+    # what the controller is told: the nominal friction, no map
+    told = env.briefing
+    assert not told["disclosed"] and told["friction"]["eps"] == 0.1
+
+
+def test_an_episode_is_the_task_and_its_report_is_the_plants():
+    env = SoftCrawlerEnv(softcrawler.Scenario(values={"task.distance": 0.02}), frame_skip=10, **FAST)
+    obs, _ = env.reset(seed=0)
+    ret, steps = 0.0, 0
+    w = env.base.wave
+    while True:
+        obs, r, term, trunc, info = env.step(np.array([0.5, w["omega"], w["k"]]))
+        ret += r
+        steps += 1
+        if term or trunc:
+            break
+    assert term and info["outcome"] == "reached"
+    report = env.report()
+    assert report.task.outcome == "reached" and report.task.distance >= 0.02
+    # the reward: progress over D, minus time, plus 1 on reaching
+    t = report.task.run_time
+    assert ret == pytest.approx(report.task.distance / 0.02 - t / 6.0 + 1.0, rel=1e-9)
+    # the sensed progress is the task's distance over D
+    names = env.observation_names
+    assert obs[names.index("progress")] == pytest.approx(report.task.distance / 0.02, rel=1e-12)
+    assert obs[names.index("energy")] == pytest.approx(report.task.energy_used / 20.0, rel=1e-12)
+
+
+@pytest.mark.parametrize("action, frame_skip", [("wave", 40), ("field", 7)])
+def test_a_trained_agent_drives_the_same_run_in_the_environment_and_in_process(action, frame_skip):
+    """The same object: the env's action every frame_skip steps, and an EnvPolicy run by the
+    execution loop (the co-simulation's loop), give the same plant state bit for bit."""
+    scenario = softcrawler.Scenario(values={"task.distance": 0.05}, eps=0.3, **FAST)
+    rng = np.random.default_rng(5)
+    weights = rng.normal(size=(8 if action == "field" else 3, 6 * 8 + 6)) * 0.05
+
+    def agent(features: np.ndarray) -> np.ndarray:
+        x = np.tanh(weights[:, : len(features)] @ features)
+        if action == "wave":
+            return np.array([0.4 + 0.2 * x[0], 60.0 + 20 * x[1], 6.3 + 3 * x[2]])
+        return 0.5 * x
+
+    env = SoftCrawlerEnv(scenario, action=action, frame_skip=frame_skip)
+    obs, _ = env.reset()
+    while True:
+        obs, _, term, trunc, _ = env.step(agent(obs))
+        if term or trunc:
+            break
+    policy = softcrawler.EnvPolicy(agent, action=action, frame_skip=frame_skip)
+    run = softcrawler.run(env.scenario.with_values(task=True), policy)
+    assert run.report.state_digest == env.state_digest
+    assert run.report.to_dict() == env.report().to_dict()

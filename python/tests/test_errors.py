@@ -1,0 +1,105 @@
+"""Inputs that are not allowed raise the package's InvalidInput, naming the field, the value and
+what is allowed, as the programs do."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import softcrawler
+from softcrawler import InvalidInput
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: softcrawler.Scenario(eps=-1.0), "friction.eps"),
+    (lambda: softcrawler.Scenario(n_f=1.5), "friction.n_f"),
+    (lambda: softcrawler.Scenario(cells=3), "numerics.cells"),
+    (lambda: softcrawler.Scenario(t_end=float("nan")), "numerics.t_end"),
+    (lambda: softcrawler.Scenario(k=-1.0), "actuation.k"),
+    (lambda: softcrawler.Scenario(values={"task.sigma_max": 0.0}), "task.sigma_max"),
+    (lambda: softcrawler.Scenario(values={"pipe.disclose": False}), "pipe.nominal"),
+    (lambda: softcrawler.Scenario(values={"limits.omega": [300.0, 10.0]}), "limits.omega"),
+    (lambda: softcrawler.Scenario(values={"friction.colour": 1.0}), "friction.colour"),
+    (lambda: softcrawler.Scenario(values={"numerics.cells": "many"}), "numerics.cells"),
+    (lambda: softcrawler.Scenario(spin=2.0), "spin"),
+])
+def test_a_bad_scenario_value_names_its_field(make, field):
+    with pytest.raises(InvalidInput) as e:
+        make()
+    assert e.value.field == field, e.value
+    assert e.value.allowed and f"invalid {field}" in str(e.value)
+
+
+def test_a_bad_dict_names_the_field_and_a_missing_file_the_scenario(tmp_path):
+    table = softcrawler.Scenario().to_dict()
+    table["body"]["density"] = -0.1
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.Scenario(table)
+    assert (e.value.field, e.value.value) == ("body.density", "-0.1")
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.Scenario(tmp_path / "missing.toml")
+    assert e.value.field == "scenario"
+
+
+def test_a_bad_file_names_the_key_on_its_line(tmp_path):
+    text = softcrawler._native.PAPER_TOML.replace("eps = 0.1 ", "eps = \"high\" ")
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.Scenario(path)
+    assert e.value.field == "friction.eps" and e.value.value.startswith('"high"')
+
+
+def test_bad_actuations_and_runs_name_their_field(small):
+    plant = softcrawler.Plant(small)
+    with pytest.raises(InvalidInput) as e:
+        plant.set_wave(0.5, 7.0, 50.0)
+    assert e.value.field == "wave.k"
+    with pytest.raises(InvalidInput) as e:
+        plant.set_field(np.zeros(5))
+    assert e.value.field == "field"
+    bad = np.zeros(128)
+    bad[7] = np.inf
+    with pytest.raises(InvalidInput) as e:
+        plant.set_field(bad)
+    assert e.value.field == "field[7]"
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.predict(small, "quantum")
+    assert e.value.field == "model"
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.optimize(small, tie_tolerance=0.5)
+    assert e.value.field == "tie_tolerance"
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.run(small, "optimal", ["colour=red"])
+    assert e.value.field == "params" and "colour" in e.value.allowed
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.run(small, "optimall")
+    assert e.value.field == "policy" and "optimal" in e.value.allowed
+
+
+def test_a_python_policy_that_raises_stops_the_run_with_its_exception(small):
+    class Broken:
+        def act(self, obs):
+            if obs.step == 10:
+                raise ZeroDivisionError("policy bug")
+            return softcrawler.Wave(0.5, 2 * np.pi, 70.0)
+
+    with pytest.raises(ZeroDivisionError):
+        softcrawler.run(small, Broken())
+
+
+def test_bad_environment_options_name_their_field():
+    import softcrawler.env as env
+
+    with pytest.raises(InvalidInput) as e:
+        env.SoftCrawlerEnv(action="dance", cells=64, t_end=5.2)
+    assert e.value.field == "action"
+    with pytest.raises(InvalidInput) as e:
+        env.SoftCrawlerEnv(fields=["smell"], cells=64, t_end=5.2)
+    assert e.value.field == "fields"
+    with pytest.raises(InvalidInput) as e:
+        env.SoftCrawlerEnv(segments=0, cells=64, t_end=5.2)
+    assert e.value.field == "segments"
+    with pytest.raises(InvalidInput) as e:
+        env.SoftCrawlerEnv(frame_skip=0, cells=64, t_end=5.2)
+    assert e.value.field == "frame_skip"
