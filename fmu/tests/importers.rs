@@ -4,7 +4,7 @@
 //! The FMUs are built and packaged once per test process by `scripts/build-fmu.sh` (`cargo test`
 //! builds the library only as an rlib, so the script's `cargo build --release -p crawler-fmu`
 //! links the shared library; it reuses what the test build compiled); the Python packages come
-//! from the project's venv (`scripts/setup-python.sh`, called by `crawler_e2e::python()`).
+//! from the project's venv, which `scripts/setup.sh` installs before the tests (`crawler_e2e::python()`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -249,11 +249,11 @@ fn ecos_simulates_the_fmi2_fmu_like_the_in_process_slave() {
 }
 
 #[test]
-fn the_readme_fmpy_example_runs_as_shown() {
-    let readme = std::fs::read_to_string(crawler_e2e::repo_root().join("README.md")).unwrap();
+fn the_guides_fmpy_example_runs_as_shown() {
+    let readme = std::fs::read_to_string(crawler_e2e::repo_root().join("docs/fmu.md")).unwrap();
     let start = readme
         .find("```python\nfrom fmpy import")
-        .expect("README shows an FMPy example");
+        .expect("docs/fmu.md shows an FMPy example");
     let code = &readme[start + "```python\n".len()..];
     let code = &code[..code.find("```").unwrap()];
     assert!(code.lines().count() <= 12, "the example stays short");
@@ -261,7 +261,7 @@ fn the_readme_fmpy_example_runs_as_shown() {
     let out = Command::new(crawler_e2e::python())
         .args(["-c", &code])
         .output()
-        .expect("run the README example");
+        .expect("run the example of docs/fmu.md");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -283,6 +283,6 @@ fn the_readme_fmpy_example_runs_as_shown() {
     let v_ref = reference["velocity"].as_f64().unwrap();
     assert!(
         (v - v_ref).abs() <= 5e-5 * v_ref.abs(),
-        "README example V = {v}, simulate {v_ref}"
+        "docs/fmu.md example V = {v}, simulate {v_ref}"
     );
 }
