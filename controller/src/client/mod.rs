@@ -302,7 +302,7 @@ fn serve(
     let ctx = context_of(&info, &opts.scenario);
     let policy = crawler_policies::build(&opts.policy, &ctx, &opts.params)?;
     eprintln!(
-        "crawler-controller: plant found ({} cells, L = {} m, H = {} s); policy {}",
+        "crawler-controller: plant found ({} cells, L = {} m, communication step H = {:.6e} s); policy {}",
         info.cells,
         info.length,
         info.step,
