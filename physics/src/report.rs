@@ -431,7 +431,7 @@ impl Report {
 /// number of communication steps of `h` (a report counts both; the summary names both).
 fn communication_steps(steps: u64, dt: f64, h: f64) -> Option<u64> {
     let per = (h / dt).round();
-    if !(per.is_finite() && per >= 1.0 && per <= u64::MAX as f64) {
+    if !(1.0..=u64::MAX as f64).contains(&per) {
         return None;
     }
     let per = per as u64;
