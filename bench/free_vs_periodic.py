@@ -1,6 +1,6 @@
 """How far the periodic idealisation is from a free body: V, P per metre, sigma and the stuck
 fraction at the paper's point (eps = 0.1, f0 = 0.5 N, k = 2 pi, alpha = 1) for bodies with 1, 2, 4
-and 8 wavelengths, printed as the README's table.
+and 8 wavelengths, printed as the table of docs/scenarios.md.
 
 Usage: python3 bench/free_vs_periodic.py [--alpha A]
 It builds the release binaries first (cargo build --release, said before it runs).

@@ -4,7 +4,7 @@
 Builds crawler-sweep (release) first, then runs the same plan of short plant points with
 --jobs 1 and --jobs N (N = all cores), each into a fresh store, interleaved over several trials,
 and prints the median wall times and their ratio. With --validity it also times the whole
-validity map (plans/validity.toml) into a fresh store, as the README's figure.
+validity map (plans/validity.toml) into a fresh store, as the figure of docs/benchmarks.md.
 
     .venv/bin/python bench/sweep_bench.py [--trials 3] [--points 40] [--validity]
 """

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs Debian's Slurm (slurmctld, slurmd, the client commands) and MUNGE, which the Slurm
-# executor's test needs to start its own single-node cluster (idempotent; needs root or sudo).
+# executor's test needs to start its own single-node cluster (idempotent; needs root or sudo;
+# scripts/setup.sh calls it).
 # Nothing is started or configured here: the test writes its own slurm.conf and munge key in a
 # temporary directory and stops every daemon it started.
 set -euo pipefail

@@ -1,5 +1,5 @@
 //! The one table of process exit codes, shared by every program of the project (documented in
-//! the README, "Running the processes by hand").
+//! the README, "The programs").
 
 use std::process::ExitCode;
 

@@ -1,7 +1,8 @@
 //! The Slurm executor against a real single-node Slurm cluster that this test starts itself
-//! (Debian's slurmctld, slurmd and munged, installed by scripts/setup-slurm.sh): its own munge
-//! key and socket, a slurm.conf in a temporary folder with free loopback ports, every daemon
-//! stopped at the end. If Slurm cannot be installed or started, the test fails and says why.
+//! (Debian's slurmctld, slurmd and munged, installed beforehand by scripts/setup.sh): its own
+//! munge key and socket, a slurm.conf in a temporary folder with free loopback ports, every
+//! daemon stopped at the end. If Slurm is not installed or cannot start, the test fails and says
+//! why (it never installs anything itself).
 //!
 //! Rows carry the wall time each point took, which differs between runs; every other column is
 //! compared bit for bit (`assert_same_results`), and so is the file's metadata.
@@ -78,15 +79,24 @@ impl Cluster {
     }
 
     fn start() -> Cluster {
-        let setup = Command::new("bash")
-            .arg(repo_root().join("scripts/setup-slurm.sh"))
-            .output()
-            .expect("cannot run scripts/setup-slurm.sh");
+        // Slurm is a prerequisite installed by scripts/setup.sh (which runs scripts/setup-slurm.sh),
+        // never from inside the test: say what is missing and how to get it.
+        let missing: Vec<&str> = [
+            "slurmctld",
+            "slurmd",
+            "sbatch",
+            "squeue",
+            "scancel",
+            "munged",
+        ]
+        .into_iter()
+        .filter(|c| !sbin(c).is_file())
+        .collect();
         assert!(
-            setup.status.success(),
-            "Slurm is needed for this test and could not be installed by scripts/setup-slurm.sh \
-             (Debian packages slurmctld, slurmd, slurm-client, munge; needs root or sudo): {}",
-            String::from_utf8_lossy(&setup.stderr)
+            missing.is_empty(),
+            "this test needs Slurm and MUNGE (missing: {}): run scripts/setup.sh once \
+             (it installs Debian's slurmctld, slurmd, slurm-client and munge; needs root or sudo)",
+            missing.join(", ")
         );
         let dir = tempfile::Builder::new()
             .prefix("crawler-slurm")
@@ -116,7 +126,7 @@ impl Cluster {
                 .stderr(Stdio::null())
                 .spawn()
                 .unwrap_or_else(|e| {
-                    panic!("cannot start {name}: {e} (is Slurm installed? scripts/setup-slurm.sh)")
+                    panic!("cannot start {name}: {e} (is Slurm installed? run scripts/setup.sh)")
                 });
             Daemon { name, child }
         };

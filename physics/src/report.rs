@@ -376,7 +376,7 @@ impl Report {
             opt(p.alpha, 3)
         );
         out += &format!(
-            "grid: {} cells ({}, {} body of {} m), dx = {:.3e} m, dt = {:.3e} s at Courant number {:.6}, H = {:.4e} s\n",
+            "grid: {} cells ({}, {} body of {} m), dx = {:.3e} m, dt = {:.3e} s at Courant number {:.6}, communication step H = {:.6e} s\n",
             self.cells,
             p.cells_per_wavelength
                 .map_or("field actuation".to_string(), |c| format!("{c:.1} per wavelength")),
@@ -388,8 +388,10 @@ impl Report {
             p.step,
         );
         out += &format!(
-            "run: {} steps to t = {} s; {} window {:.3}-{:.3} s ({:.1} periods)\n",
+            "run: {} internal steps{} to t = {:.6} s; {} window {:.3}-{:.3} s ({:.1} periods)\n",
             self.steps,
+            communication_steps(self.steps, self.dt, p.step)
+                .map_or(String::new(), |n| format!(" = {n} communication steps")),
             self.t_end,
             if self.window.steady {
                 "steady"
@@ -414,7 +416,7 @@ impl Report {
         out += &format!("  stuck fraction    {:.4}\n", self.stuck_fraction);
         out += &format!("  <s>               {:+.6}\n", self.mean_friction_selection);
         out += &format!(
-            "  episodes          {} ({:.3} per node per period, mean {:.3e} s)\n",
+            "  stick episodes    {} in the window ({:.3} per node per period, mean {:.3e} s)\n",
             self.events.count, self.events.per_node_per_period, self.events.mean_duration
         );
         out += &format!("  state digest      {}", self.state_digest);
@@ -423,4 +425,15 @@ impl Report {
         }
         out
     }
+}
+
+/// The communication steps that `steps` internal steps of `dt` make, when they make a whole
+/// number of communication steps of `h` (a report counts both; the summary names both).
+fn communication_steps(steps: u64, dt: f64, h: f64) -> Option<u64> {
+    let per = (h / dt).round();
+    if !(1.0..=u64::MAX as f64).contains(&per) {
+        return None;
+    }
+    let per = per as u64;
+    steps.is_multiple_of(per).then_some(steps / per)
 }

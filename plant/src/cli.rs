@@ -64,6 +64,10 @@ struct RunArgs {
     /// Print the final report as JSON (the same object as `simulate --json`).
     #[arg(long)]
     json: bool,
+    /// With --json: also list every stick-slip episode of the steady window (up to
+    /// --max-episodes; without this flag the JSON gives only their count and statistics).
+    #[arg(long, requires = "json")]
+    episodes: bool,
     /// Largest number of stick-slip episodes listed (all are counted).
     #[arg(long, default_value_t = 10_000)]
     max_episodes: usize,
@@ -85,6 +89,10 @@ struct SimulateArgs {
     /// Print one JSON object (SI units) instead of a summary.
     #[arg(long)]
     json: bool,
+    /// With --json: also list every stick-slip episode of the steady window (up to
+    /// --max-episodes; without this flag the JSON gives only their count and statistics).
+    #[arg(long, requires = "json")]
+    episodes: bool,
     /// Largest number of stick-slip episodes listed (all are counted).
     #[arg(long, default_value_t = 10_000)]
     max_episodes: usize,
@@ -207,7 +215,7 @@ fn cosim(a: RunArgs) -> anyhow::Result<ExitCode> {
     match run(opts, tx, rx)? {
         Outcome::Finished(report) => {
             if a.json {
-                crawler_cli::stdout::line(serde_json::to_string_pretty(&report)?)?;
+                crawler_cli::stdout::line(report_json(&report, a.episodes)?)?;
             } else {
                 crawler_cli::stdout::line(report.summary())?;
             }
@@ -310,7 +318,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 )?;
                 bar.finish_and_clear();
                 if a.json {
-                    crawler_cli::stdout::line(serde_json::to_string_pretty(&c)?)?;
+                    crawler_cli::stdout::line(report_json(&c, a.episodes)?)?;
                 } else {
                     crawler_cli::stdout::line(format!(
                         "{}\n\n{}",
@@ -329,7 +337,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             )?;
             bar.finish_and_clear();
             if a.json {
-                crawler_cli::stdout::line(serde_json::to_string_pretty(&report)?)?;
+                crawler_cli::stdout::line(report_json(&report, a.episodes)?)?;
             } else {
                 crawler_cli::stdout::line(report.summary())?;
             }
@@ -390,5 +398,52 @@ mod tests {
                 "{bad}: {e}"
             );
         }
+    }
+}
+
+/// A report as pretty JSON; without `episodes` every `events` object keeps the episodes' count
+/// and statistics but not their list (a steady window holds hundreds of thousands of them, which
+/// made the default output megabytes long).
+fn report_json<T: serde::Serialize>(report: &T, episodes: bool) -> anyhow::Result<String> {
+    let mut value = serde_json::to_value(report)?;
+    if !episodes {
+        drop_episode_lists(&mut value);
+    }
+    Ok(serde_json::to_string_pretty(&value)?)
+}
+
+fn drop_episode_lists(value: &mut serde_json::Value) {
+    match value {
+        serde_json::Value::Object(map) => {
+            if let Some(serde_json::Value::Object(events)) = map.get_mut("events") {
+                events.remove("episodes");
+                events.remove("episodes_truncated");
+            }
+            map.values_mut().for_each(drop_episode_lists);
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(drop_episode_lists),
+        _ => {}
+    }
+}
+
+#[cfg(test)]
+mod json_tests {
+    use super::*;
+
+    #[test]
+    fn the_json_report_lists_episodes_only_when_asked() {
+        let report = serde_json::json!({
+            "velocity": 1.0,
+            "events": {"count": 2, "episodes": [{"node": 1}, {"node": 2}], "episodes_truncated": false},
+            "coarse": {"events": {"count": 1, "episodes": [{"node": 3}], "episodes_truncated": false}},
+        });
+        let compact: serde_json::Value =
+            serde_json::from_str(&report_json(&report, false).unwrap()).unwrap();
+        assert_eq!(compact["events"]["count"], 2);
+        assert!(compact["events"].get("episodes").is_none());
+        assert!(compact["coarse"]["events"].get("episodes").is_none());
+        let full: serde_json::Value =
+            serde_json::from_str(&report_json(&report, true).unwrap()).unwrap();
+        assert_eq!(full, report);
     }
 }

@@ -3,8 +3,8 @@
 
 use crawler_physics::scenario::Scenario;
 
-/// A conservative single-thread rate of the stepping loop, cell updates per second (the
-/// README's benchmark measures 4e8 to 5e8 on one core of the development machine).
+/// A conservative single-thread rate of the stepping loop, cell updates per second
+/// (docs/benchmarks.md measures 4e8 to 5e8 on one core of the development machine).
 pub const NOMINAL_RATE: f64 = 2e8;
 
 /// Runs estimated to take longer than this, s, are announced with their cost.
@@ -20,7 +20,7 @@ pub fn notes(scenario: &Scenario) -> Vec<String> {
     if (size.t_end - scenario.t_end).abs() > 1e-9 * scenario.t_end {
         notes.push(format!(
             "the run ends at t = {:.9} s, the first communication point at or after t_end = {} s \
-             ({} steps of H = {:.9} s; H is a whole number of internal steps)",
+             ({} communication steps of H = {:.6e} s; H is a whole number of internal steps)",
             size.t_end, scenario.t_end, size.macro_steps, size.step
         ));
     }

@@ -59,30 +59,37 @@ pub fn repo_root() -> PathBuf {
         .to_path_buf()
 }
 
-/// The Python of the project's venv with the pinned packages; the first call in a test process
-/// runs `scripts/setup-python.sh` (idempotent: it installs only what is missing), so
-/// `cargo test` works on a fresh clone.
+/// The Python of the project's venv with the pinned packages, which `scripts/setup.sh` (or
+/// `scripts/setup-python.sh`) installs before the tests; a test never installs packages itself.
+/// Panics, naming the set-up step, when the venv is missing or older than a requirements file.
 pub fn python() -> PathBuf {
-    static READY: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
-    READY
-        .get_or_init(|| {
-            let root = repo_root();
-            let out = Command::new("bash")
-                .arg(root.join("scripts/setup-python.sh"))
-                .output()
-                .map_err(|e| format!("cannot run scripts/setup-python.sh: {e}"))?;
-            let p = root.join(".venv/bin/python");
-            if out.status.success() && p.is_file() {
-                Ok(p)
-            } else {
-                Err(format!(
-                    "scripts/setup-python.sh failed (it needs python3 with venv and pip): {}",
-                    String::from_utf8_lossy(&out.stderr)
-                ))
-            }
-        })
-        .clone()
-        .unwrap_or_else(|e| panic!("{e}"))
+    let root = repo_root();
+    let p = root.join(".venv/bin/python");
+    let modified = |f: &str| {
+        std::fs::metadata(root.join(f))
+            .and_then(|m| m.modified())
+            .ok()
+    };
+    let installed = modified(".venv/.installed");
+    let stale = ["requirements.txt", "requirements-peers.txt"]
+        .into_iter()
+        .filter(|f| matches!((modified(f), installed), (Some(r), Some(i)) if r > i))
+        .collect::<Vec<_>>();
+    assert!(
+        p.is_file() && installed.is_some(),
+        "the tests need the project's Python venv ({} is missing): run scripts/setup.sh once",
+        if p.is_file() {
+            ".venv/.installed"
+        } else {
+            ".venv/bin/python"
+        }
+    );
+    assert!(
+        stale.is_empty(),
+        "the venv is older than {}: run scripts/setup.sh to install the pinned packages",
+        stale.join(" and ")
+    );
+    p
 }
 
 /// The venv's Python with the project's package `softcrawler` installed from the current sources

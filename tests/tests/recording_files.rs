@@ -1,5 +1,5 @@
 //! The recorder's files and its live view, checked with the pinned Rerun CLI of the project's venv
-//! (`scripts/setup-python.sh --viewer`): `rerun rrd verify` accepts the recordings of finished and
+//! (installed by `scripts/setup.sh`): `rerun rrd verify` accepts the recordings of finished and
 //! interrupted runs (with the footer), and a real Rerun gRPC server given `--connect` receives the
 //! run's decimated stream while the file is written (every scalar, the fields of the last state
 //! of each block).
@@ -25,29 +25,15 @@ fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     ONE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// The venv's `rerun` (installs it on first use; idempotent).
+/// The venv's `rerun`, installed beforehand by `scripts/setup.sh` (a test installs nothing).
 fn rerun_cli() -> PathBuf {
-    static READY: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
-    READY
-        .get_or_init(|| {
-            let root = repo_root();
-            let out = Command::new("bash")
-                .arg(root.join("scripts/setup-python.sh"))
-                .arg("--viewer")
-                .output()
-                .map_err(|e| format!("cannot run scripts/setup-python.sh: {e}"))?;
-            let p = root.join(".venv/bin/rerun");
-            if out.status.success() && p.is_file() {
-                Ok(p)
-            } else {
-                Err(format!(
-                    "scripts/setup-python.sh --viewer failed: {}",
-                    String::from_utf8_lossy(&out.stderr)
-                ))
-            }
-        })
-        .clone()
-        .unwrap_or_else(|e| panic!("{e}"))
+    let p = repo_root().join(".venv/bin/rerun");
+    assert!(
+        p.is_file(),
+        "this test needs the Rerun CLI of the project's venv ({} is missing): run scripts/setup.sh once",
+        p.display()
+    );
+    p
 }
 
 /// `rerun rrd verify FILE` (footers checked): its success and what it said.

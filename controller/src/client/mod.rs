@@ -317,7 +317,7 @@ fn serve(
     let ctx = context_of(&info, &opts.scenario);
     let policy = build(&ctx)?;
     eprintln!(
-        "crawler-controller: plant {plant} found ({} cells, L = {} m, H = {} s); policy {}",
+        "crawler-controller: plant {plant} found ({} cells, L = {} m, communication step H = {:.6e} s); policy {}",
         info.cells,
         info.length,
         info.step,

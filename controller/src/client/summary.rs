@@ -96,7 +96,12 @@ impl FinalSummary {
             }
         }
         out +=
-            "errors: relative to the plant, except for shares (the stuck fraction: difference)\n";
+            "errors: relative to the plant, except for shares (the stuck fraction: difference); \
+             \"-\": no value (a model not valid there, as said above, or a plant value of 0 or \
+             not received)\n";
+        out += "models: the steady state of a periodic body in a uniform pipe with the friction \
+                the controller was told (in another pipe or on a free body the errors include \
+                that difference)\n";
         out
     }
 }

@@ -148,26 +148,13 @@ pub fn stored(store: &Path) -> usize {
         .count()
 }
 
-/// The Python of the project's venv (with pyarrow), set up by scripts/setup-python.sh.
+/// The Python of the project's venv (with pyarrow), installed beforehand by scripts/setup.sh; a
+/// test never installs packages itself, and says which step is missing.
 pub fn python() -> PathBuf {
-    static READY: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
-    READY
-        .get_or_init(|| {
-            let root = repo_root();
-            let out = Command::new("bash")
-                .arg(root.join("scripts/setup-python.sh"))
-                .output()
-                .map_err(|e| format!("cannot run scripts/setup-python.sh: {e}"))?;
-            let p = root.join(".venv/bin/python");
-            if out.status.success() && p.is_file() {
-                Ok(p)
-            } else {
-                Err(format!(
-                    "scripts/setup-python.sh failed: {}",
-                    String::from_utf8_lossy(&out.stderr)
-                ))
-            }
-        })
-        .clone()
-        .unwrap_or_else(|e| panic!("{e}"))
+    let p = repo_root().join(".venv/bin/python");
+    assert!(
+        p.is_file() && repo_root().join(".venv/.installed").is_file(),
+        "the tests need the project's Python venv with its pinned packages: run scripts/setup.sh once"
+    );
+    p
 }

@@ -6,7 +6,7 @@
 //! The FMUs are built and packaged once per test process by `scripts/build-fmu.sh` (`cargo test`
 //! builds the library only as an rlib, so the script's `cargo build --release -p crawler-fmu`
 //! links the shared library; it reuses what the test build compiled); the Python packages come
-//! from the project's venv (`scripts/setup-python.sh`, called by `crawler_e2e::python()`).
+//! from the project's venv, which `scripts/setup.sh` installs before the tests (`crawler_e2e::python()`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

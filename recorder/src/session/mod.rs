@@ -462,7 +462,7 @@ impl Session {
         };
         if recorded {
             eprintln!(
-                "crawler-recorder: {how} {out}: {}; {} metric blocks ({} of them clock blocks), {} episodes, {} rejected ({} invalid), {} refused at arrival, {} dropped{viewer}",
+                "crawler-recorder: {how} {out}: {}; {} metric blocks ({} of them clock blocks), {} stick episodes (whole run), {} rejected ({} invalid), {} refused at arrival, {} dropped{viewer}",
                 self.recorder.closing_note(),
                 c.metric_blocks,
                 c.clock_blocks,
