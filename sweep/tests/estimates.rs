@@ -7,7 +7,7 @@ use std::path::Path;
 use crawler_facts::Metric;
 use crawler_sweep::evaluate::convergence::plant_with_estimate;
 use crawler_sweep::plan::Plan;
-use crawler_sweep::point::{resolve, Point};
+use crawler_sweep::point::{caveats, resolve, Point};
 use crawler_sweep::table::{conv_error, conv_estimate, Untrusted};
 
 /// The validity map's settings (`plans/validity.toml`) at one point, with `extra` set lines.
@@ -109,6 +109,14 @@ fn stick_statistics_at_a_biased_courant_number_have_no_estimate() {
         "numerics.courant = 0.9",
     );
     assert_eq!(p.scenario.caveats().len(), 1);
+    // the sweep warns once per distinct caveat, with its field, value and the default
+    let warned = caveats(std::slice::from_ref(&p));
+    assert_eq!(warned.len(), 1);
+    assert!(
+        warned[0].0.starts_with("numerics.courant = 0.9 ") && warned[0].0.contains("1 / alpha"),
+        "{warned:?}"
+    );
+    assert_eq!(warned[0].1, 1);
     let r = plant_with_estimate(&p.scenario, true).unwrap();
     assert_eq!(
         conv_estimate(&r, Metric::StuckFraction, &p),
