@@ -52,10 +52,8 @@ impl Invocation {
 /// Where the programs of the project are.
 #[derive(Debug, Clone)]
 pub struct Programs {
-    /// This executable (the plant and the controller are its subcommands).
+    /// This executable (the plant, the controller and the recorder are its subcommands).
     pub exe: PathBuf,
-    /// The recorder's executable.
-    pub recorder: PathBuf,
 }
 
 /// The plant of a run.
@@ -119,11 +117,8 @@ pub struct RecorderRun<'a> {
 impl Programs {
     /// The programs next to this executable.
     pub fn here() -> anyhow::Result<Self> {
-        let exe = std::env::current_exe()?;
-        let dir = exe.parent().map(Path::to_path_buf).unwrap_or_default();
         Ok(Self {
-            recorder: dir.join("crawler-recorder"),
-            exe,
+            exe: std::env::current_exe()?,
         })
     }
 
@@ -181,7 +176,7 @@ impl Programs {
         }
     }
 
-    /// `crawler-recorder record ...`.
+    /// `crawler record ...`.
     pub fn recorder(&self, r: &RecorderRun) -> Invocation {
         let mut args: Vec<String> = vec![
             "record".into(),
@@ -206,7 +201,7 @@ impl Programs {
             None => {}
         }
         Invocation {
-            exe: self.recorder.clone(),
+            exe: self.exe.clone(),
             args,
         }
     }
@@ -220,7 +215,6 @@ mod tests {
     fn the_plant_and_the_controller_get_the_same_scenario_flags() {
         let programs = Programs {
             exe: "/x/crawler".into(),
-            recorder: "/x/crawler-recorder".into(),
         };
         let scenario = ScenarioArgs {
             scenario: Some("s.toml".into()),
@@ -263,7 +257,6 @@ mod tests {
     fn a_resumed_plant_takes_its_scenario_from_the_checkpoint() {
         let programs = Programs {
             exe: "/x/crawler".into(),
-            recorder: "/x/crawler-recorder".into(),
         };
         let scenario = ScenarioArgs {
             scenario: Some("s.toml".into()),

@@ -80,8 +80,9 @@ pub struct CompareArgs {
     /// Cells of every plant (default: each scenario's own; fewer for a quick look).
     #[arg(long, allow_hyphen_values = true)]
     cells: Option<i64>,
-    /// Record the fields of every K-th step.
-    #[arg(long, default_value_t = 16)]
+    /// Record the fields of every K-th step (every step's scalars, metrics and events are
+    /// always recorded).
+    #[arg(long, default_value_t = 1)]
     every: u64,
     /// Longest wall time of one run, s.
     #[arg(long, allow_hyphen_values = true, default_value_t = 900.0)]
@@ -162,9 +163,8 @@ pub fn compare(a: CompareArgs) -> anyhow::Result<ExitCode> {
         "invalid --run-timeout = {}: allowed a number of seconds, 0 < run-timeout < 1e9",
         crawler_cli::number(a.run_timeout)
     );
-    anyhow::ensure!(a.every >= 1, "invalid --every = 0: allowed 1 or more");
+    crate::preflight::check_every(a.every)?;
     let programs = Programs::here()?;
-    crate::recorder_binary::ensure(&programs)?;
     let interrupted = Arc::new(AtomicBool::new(false));
     {
         let flag = interrupted.clone();

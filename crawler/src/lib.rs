@@ -12,7 +12,6 @@
 pub mod children;
 pub mod compare;
 pub mod preflight;
-mod recorder_binary;
 pub mod run;
 pub mod supervise;
 pub mod sweep;

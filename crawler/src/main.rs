@@ -1,6 +1,6 @@
 //! `crawler`: the soft-crawler co-simulation in one command (`crawler run`), the policy
 //! comparison (`crawler compare`), sweeps (`crawler sweep`), and each program of the project
-//! under one name (`crawler plant ...`, `crawler controller ...`).
+//! under one name (`crawler plant ...`, `crawler controller ...`, `crawler record ...`).
 
 use std::process::ExitCode;
 
@@ -39,6 +39,14 @@ enum Cmd {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
+    /// The recorder: subscribe to a run and record it into a Rerun file (also the
+    /// `crawler-recorder record` binary).
+    #[command(disable_help_flag = true)]
+    Record {
+        /// The recorder's arguments (`crawler record --help`).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
     /// The controller: `predict`, `optimize`, `figures`, `policies`, `run` (also the
     /// `crawler-controller` binary).
     #[command(disable_help_flag = true)]
@@ -60,6 +68,11 @@ fn main() -> ExitCode {
         Cmd::Compare(a) => compare::compare(a),
         Cmd::Sweep { args } => Ok(crawler::sweep::main(named("crawler sweep", args))),
         Cmd::Plant { args } => Ok(crawler_plant::cli::main(named("crawler plant", args))),
+        Cmd::Record { args } => Ok(crawler_recorder::cli::main(
+            ["crawler".to_string(), "record".to_string()]
+                .into_iter()
+                .chain(args),
+        )),
         Cmd::Controller { args } => Ok(crawler_controller::cli::main(named(
             "crawler controller",
             args,

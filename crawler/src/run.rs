@@ -45,8 +45,9 @@ pub struct RunArgs {
     /// scenario and grid; `--scenario` and `--policy` still choose the controller's).
     #[arg(long, value_name = "FILE", conflicts_with = "cells")]
     resume: Option<PathBuf>,
-    /// Record the fields of every K-th step.
-    #[arg(long, default_value_t = 4)]
+    /// Record the fields of every K-th step (every step's scalars, metrics and events are
+    /// always recorded).
+    #[arg(long, default_value_t = 1)]
     every: u64,
     /// Watch the run live: the recorder streams to a Rerun viewer (it starts one on loopback,
     /// `.venv/bin/rerun` if the project's venv has it, else `rerun` from PATH, unless one already
@@ -160,7 +161,6 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     preflight::check_out(&a.out)?;
     preflight::check_every(a.every)?;
     let programs = Programs::here()?;
-    crate::recorder_binary::ensure(&programs)?;
     let interrupted = Arc::new(AtomicBool::new(false));
     {
         let flag = interrupted.clone();

@@ -6,6 +6,13 @@
 //! that starts at or after its end, so it holds whole periods up to one internal step. Blocks that
 //! start at least `numerics.settle` seconds after the last change of actuation form the steady
 //! window; the steady metrics are the sums over that window.
+//!
+//! Beside them runs a second sequence of *clock blocks*: `numerics.block` seconds each, counted
+//! from the tracker's creation (the run's start) and never restarted, whatever the actuation does.
+//! They are the running metrics of any actuation, open loop or feedback: a controller that changes
+//! its wave every step never closes a forcing-period block, but closes a clock block every
+//! `numerics.block` seconds. Both sequences are reported as they close ([`BlockReport::clock`]);
+//! the report's windows (steady, run, all) are made of forcing-period blocks only.
 
 use crawler_facts::{Metric, MetricValues};
 use serde::{Deserialize, Serialize};
@@ -294,6 +301,57 @@ pub struct BlockReport {
     pub steady: bool,
     /// The block's sums.
     pub sums: Sums,
+    /// True for a clock block ([`ClockBlocks`]); false for a forcing-period block.
+    #[serde(default)]
+    pub clock: bool,
+}
+
+/// Blocks of a fixed length on the run's clock: the `index`-th spans
+/// `[origin + index len, origin + (index + 1) len)`, whatever the actuation did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ClockBlocks {
+    /// Block length, s.
+    pub len: f64,
+    /// Start of block 0 (the tracker's creation), s.
+    pub origin: f64,
+    /// Index of the open block.
+    pub index: u64,
+    /// End of the open block, s.
+    pub end: f64,
+    /// The open block.
+    pub block: Sums,
+}
+
+impl ClockBlocks {
+    fn new(origin: f64, len: f64) -> Self {
+        Self {
+            len,
+            origin,
+            index: 0,
+            end: origin + len,
+            block: Sums::empty(origin),
+        }
+    }
+
+    /// Closes the open block if the step starting at `t` (s) reaches its end; returns it.
+    fn close_at(&mut self, t: f64) -> Option<BlockReport> {
+        if t < self.end {
+            return None;
+        }
+        let closed = (self.block.steps > 0).then_some(BlockReport {
+            index: self.index,
+            steady: false,
+            sums: self.block,
+            clock: true,
+        });
+        // Block ends from the integer index, skipping empty blocks (a step longer than a block).
+        while self.end <= t {
+            self.index += 1;
+            self.end = self.origin + (self.index + 1) as f64 * self.len;
+        }
+        self.block = Sums::empty(t);
+        closed
+    }
 }
 
 /// Splits the internal steps into blocks and accumulates the steady window.
@@ -323,6 +381,10 @@ pub struct MetricsTracker {
     /// run that ended early).
     #[serde(default = "empty_sums")]
     pub all: Sums,
+    /// The clock blocks (`None` in a tracker read from a checkpoint written before they
+    /// existed: that run reports none).
+    #[serde(default)]
+    pub clock: Option<ClockBlocks>,
     /// Blocks closed since the caller last drained them.
     #[serde(skip)]
     pub closed: Vec<BlockReport>,
@@ -344,7 +406,14 @@ impl MetricsTracker {
         self.block.validate("state.metrics.block")?;
         self.steady.validate("state.metrics.steady")?;
         self.run.validate("state.metrics.run")?;
-        self.all.validate("state.metrics.all")
+        self.all.validate("state.metrics.all")?;
+        if let Some(c) = &self.clock {
+            positive("state.metrics.clock.len", c.len)?;
+            finite("state.metrics.clock.origin", c.origin)?;
+            finite("state.metrics.clock.end", c.end)?;
+            c.block.validate("state.metrics.clock.block")?;
+        }
+        Ok(())
     }
 
     /// The windows agree with the plant's clock: each spans its steps of `dt` (s), and the closed
@@ -355,6 +424,10 @@ impl MetricsTracker {
             .validate_span("state.metrics.steady", dt, true)?;
         self.run.validate_span("state.metrics.run", dt, true)?;
         self.all.validate_span("state.metrics.all", dt, true)?;
+        if let Some(c) = &self.clock {
+            c.block
+                .validate_span("state.metrics.clock.block", dt, false)?;
+        }
         let counted = self.all.steps.checked_add(self.block.steps);
         if counted != Some(steps) {
             return Err(crate::error::ParamError::new(
@@ -394,6 +467,7 @@ impl MetricsTracker {
             run_settle_until: origin + settle,
             run: Sums::empty(origin),
             all: Sums::empty(origin),
+            clock: Some(ClockBlocks::new(origin, block_len)),
             closed: Vec::new(),
         }
     }
@@ -410,7 +484,9 @@ impl MetricsTracker {
         self.all.merge(&open);
         let closed = std::mem::take(&mut self.closed);
         let (run, run_settle_until, all) = (self.run, self.run_settle_until, self.all);
+        let clock = self.clock;
         *self = Self::new(origin, block_len, settle);
+        self.clock = clock;
         self.closed = closed;
         self.run = run;
         self.all = all;
@@ -423,40 +499,41 @@ impl MetricsTracker {
         if t >= self.block_end {
             self.close_block(t);
         }
-        let b = &mut self.block;
-        if b.steps == 0 {
-            b.start = t;
-            b.first_v_old = sums.sum_v_old;
+        add_to(&mut self.block, t, dt, sums, energy_in, dissipated);
+        if let Some(c) = &mut self.clock {
+            if let Some(report) = c.close_at(t) {
+                self.closed.push(report);
+            }
+            add_to(&mut c.block, t, dt, sums, energy_in, dissipated);
         }
-        b.steps += 1;
-        b.end = t + dt;
-        b.last_v = sums.sum_v;
-        b.sum_v += sums.sum_v;
-        b.sum_v_old += sums.sum_v_old;
-        b.sum_s += sums.sum_s;
-        b.friction_force += sums.friction_force;
-        b.stuck += sums.stuck;
-        b.max_tension = b.max_tension.max(sums.max_tension);
-        b.max_strain = b.max_strain.max(sums.max_strain);
-        b.energy_in += energy_in;
-        b.dissipated += dissipated;
     }
 
     /// Records a stick-slip episode of `duration` s that ended in the current block.
     pub fn add_episode(&mut self, duration: f64) {
-        self.block.episodes += 1;
-        self.block.stick_time += duration;
+        for b in self.open_blocks() {
+            b.episodes += 1;
+            b.stick_time += duration;
+        }
     }
 
     /// Corrects the stuck node-steps of the current block by `node_steps` (stick phases timed
     /// inside their steps, see [`crate::events::Applied`]).
     pub fn correct_stuck(&mut self, node_steps: f64) {
-        self.block.stuck += node_steps;
+        for b in self.open_blocks() {
+            b.stuck += node_steps;
+        }
     }
 
     /// Adds actuator work done outside a step (a jump of the muscle force), J.
     pub fn add_energy(&mut self, energy: f64) {
-        self.block.energy_in += energy;
+        for b in self.open_blocks() {
+            b.energy_in += energy;
+        }
+    }
+
+    /// The open forcing-period block and the open clock block.
+    fn open_blocks(&mut self) -> impl Iterator<Item = &mut Sums> {
+        std::iter::once(&mut self.block).chain(self.clock.as_mut().map(|c| &mut c.block))
     }
 
     fn after_run_transient(&self, block: &Sums) -> bool {
@@ -479,6 +556,7 @@ impl MetricsTracker {
             index: self.block_index,
             steady,
             sums: self.block,
+            clock: false,
         });
         self.block_index += 1;
         // Block ends are computed from the integer block index: no drift from adding floats.
@@ -490,6 +568,26 @@ impl MetricsTracker {
         }
         self.block = Sums::empty(t);
     }
+}
+
+/// Adds the internal step starting at `t` (s) of length `dt` to the span `b`.
+fn add_to(b: &mut Sums, t: f64, dt: f64, sums: &StepSums, energy_in: f64, dissipated: f64) {
+    if b.steps == 0 {
+        b.start = t;
+        b.first_v_old = sums.sum_v_old;
+    }
+    b.steps += 1;
+    b.end = t + dt;
+    b.last_v = sums.sum_v;
+    b.sum_v += sums.sum_v;
+    b.sum_v_old += sums.sum_v_old;
+    b.sum_s += sums.sum_s;
+    b.friction_force += sums.friction_force;
+    b.stuck += sums.stuck;
+    b.max_tension = b.max_tension.max(sums.max_tension);
+    b.max_strain = b.max_strain.max(sums.max_strain);
+    b.energy_in += energy_in;
+    b.dissipated += dissipated;
 }
 
 /// The first internal step `j` (steps start at `j dt`, s) that starts at or after `t` (s).
@@ -545,6 +643,78 @@ pub fn steps_to_steady_block(dt: f64, block_len: f64, settle: f64) -> Option<u64
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn step_sums(v: f64) -> StepSums {
+        StepSums {
+            sum_v: v,
+            sum_v_old: v,
+            sum_s: 0.0,
+            friction_force: 0.0,
+            stuck: 1.0,
+            max_tension: v,
+            max_strain: 0.0,
+            tension_sin: 0.0,
+            tension_cos: 0.0,
+            dissipation: 0.0,
+        }
+    }
+
+    /// Clock blocks close every `block_len` seconds from the run's start whatever the actuation
+    /// does: with a restart at every step no forcing-period block ever closes, yet the clock
+    /// blocks do, hold every step taken between them, and sum what was added. Without restarts
+    /// they are the forcing-period blocks, bit for bit.
+    #[test]
+    fn clock_blocks_close_on_the_runs_clock_whatever_the_actuation_does() {
+        let (dt, block_len) = (1.0 / 1024.0, 0.125); // 128 steps a block, exact in binary
+        let mut restarted = MetricsTracker::new(0.0, block_len, 0.5);
+        let mut steady = MetricsTracker::new(0.0, block_len, 0.5);
+        let mut clock = Vec::new();
+        let mut periods = Vec::new();
+        for j in 0..1000u64 {
+            let t = j as f64 * dt;
+            // a new wave every step (another period each time)
+            restarted.restart(t, 0.05 + 1e-5 * j as f64, 0.5);
+            for m in [&mut restarted, &mut steady] {
+                m.add_step(t, dt, &step_sums(j as f64), 2.0 * dt, dt);
+                m.add_episode(1e-3);
+            }
+            clock.append(&mut restarted.closed);
+            periods.append(&mut steady.closed);
+        }
+        assert!(clock.iter().all(|b| b.clock), "only clock blocks closed");
+        let indices: Vec<u64> = clock.iter().map(|b| b.index).collect();
+        assert_eq!(
+            indices,
+            (0..7).collect::<Vec<_>>(),
+            "blocks 0 to 6 of 0.125 s"
+        );
+        for b in &clock {
+            assert_eq!(b.sums.steps, 128);
+            assert_eq!(b.sums.episodes, 128);
+            assert_eq!(b.sums.stuck, 128.0);
+            let first = b.index as f64 * 128.0;
+            assert_eq!(
+                b.sums.sum_v,
+                (0..128).map(|k| first + k as f64).sum::<f64>()
+            );
+            assert_eq!(b.sums.max_tension, first + 127.0);
+            assert_eq!(b.sums.energy_in, 0.25);
+        }
+        let open = restarted.clock.unwrap().block;
+        assert_eq!(7 * 128 + open.steps, 1000, "every step in a clock block");
+        // without restarts: the same blocks as the forcing period's
+        let (period_blocks, clock_blocks): (Vec<_>, Vec<_>) =
+            periods.into_iter().partition(|b| !b.clock);
+        assert_eq!(period_blocks.len(), clock_blocks.len());
+        for (p, c) in period_blocks.iter().zip(&clock_blocks) {
+            assert_eq!((p.index, p.sums), (c.index, c.sums));
+        }
+        // a tracker of an older checkpoint has no clock blocks, and is still valid
+        let mut old = steady.clone();
+        old.clock = None;
+        old.validate().unwrap();
+        old.add_step(1.0, dt, &step_sums(1.0), 0.0, 0.0);
+    }
 
     /// The steps [`steps_to_steady_block`] asks for are exactly those after which the tracker's
     /// steady window first holds a block, for fine and coarse steps, blocks shorter than a step,

@@ -652,6 +652,7 @@ impl<O: Outbox> Publisher<'_, O> {
                 start: m.start,
                 end: m.end,
                 values: m.values(),
+                clock: b.clock,
             };
             if msg.values.get(Metric::Velocity).is_some() && msg.values.get(Metric::Power).is_some()
             {

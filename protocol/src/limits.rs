@@ -278,6 +278,7 @@ mod tests {
                 (Metric::MeanFrictionSelection, -1e300),
                 (Metric::EpisodesPerNodePerPeriod, -1e300),
             ]),
+            clock: true,
         };
         assert!(encode(&m).len() <= RunLimits::metrics());
     }

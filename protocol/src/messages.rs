@@ -439,6 +439,13 @@ pub struct Metrics {
     /// where a value is not a number (the mileage when P = 0).
     #[serde(flatten)]
     pub values: MetricValues,
+
+    /// True for a clock block: `numerics.block` seconds on the run's clock from its start, closed
+    /// whatever the actuation did (the running metrics of any controller; `block` counts them from
+    /// the run's start, `steady` is false). False for a block of the forcing period counted from
+    /// the last change of actuation. Absent: false.
+    #[serde(default)]
+    pub clock: bool,
 }
 
 impl Message for Metrics {
@@ -1088,6 +1095,7 @@ mod tests {
                 (Metric::MeanFrictionSelection, 0.0),
                 (Metric::EpisodesPerNodePerPeriod, 0.0),
             ]),
+            clock: false,
         };
         assert_eq!(decode::<Metrics>(&encode(&m)).unwrap(), m);
         m.values = m.values.with_raw(Metric::Mileage, Some(f64::NAN));

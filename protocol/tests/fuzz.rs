@@ -87,6 +87,7 @@ fn samples() -> Samples {
             (Metric::MeanFrictionSelection, 0.1),
             (Metric::EpisodesPerNodePerPeriod, 1.0),
         ]),
+        clock: false,
     };
     let status = Status {
         v: PROTOCOL_VERSION,

@@ -106,6 +106,7 @@ fn metrics() -> Metrics {
             (Metric::MeanFrictionSelection, -0.5),
             (Metric::EpisodesPerNodePerPeriod, 0.0),
         ]),
+        clock: false,
     }
 }
 

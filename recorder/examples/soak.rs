@@ -3,9 +3,9 @@
 //!
 //! `cargo run --release -p crawler-recorder --example soak -- STEPS CELLS OUT.rrd`
 
-use crawler_facts::{Metric, MetricValues};
 use std::time::Duration;
 
+use crawler_facts::{Metric, MetricValues};
 use crawler_protocol::{
     encode, Applied, EpisodeMsg, Events, Metrics, ModelInfo, State, WaveMsg, PROTOCOL_VERSION,
 };
@@ -80,6 +80,7 @@ fn main() -> anyhow::Result<()> {
                     (Metric::MeanFrictionSelection, -0.5),
                     (Metric::EpisodesPerNodePerPeriod, 1.0),
                 ]),
+                clock: false,
             };
             r.handle(Incoming::Metrics(encode(&m)))?;
             let e = Events {
@@ -96,8 +97,7 @@ fn main() -> anyhow::Result<()> {
             };
             r.handle(Incoming::Events(encode(&e)))?;
         }
-        r.pace(0, Duration::ZERO, 0);
-        r.maybe_flush();
+        r.maybe_flush()?;
         if n % (steps / 10).max(1) == 0 {
             println!(
                 "step {n:>8}: {:6.1} MiB, {:.1} s",

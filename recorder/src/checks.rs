@@ -323,6 +323,7 @@ mod tests {
                 (Metric::MeanFrictionSelection, 0.4),
                 (Metric::EpisodesPerNodePerPeriod, 0.01),
             ]),
+            clock: false,
         }
     }
 

@@ -157,6 +157,8 @@ fn one_command_runs_the_whole_cosimulation() {
             "run".into(),
             "--t-end".into(),
             "6".into(),
+            "--every".into(),
+            "1".into(),
             "--out".into(),
             rrd.display().to_string(),
             "--run-id".into(),
@@ -185,6 +187,64 @@ fn one_command_runs_the_whole_cosimulation() {
         .steps_until(6.0);
     assert_eq!(rec.entity("tail/plant").rows as u64, last + 1);
     assert!(rec.entity("summary/velocity").scalars[0] > 0.0);
+    // every state's fields, and the recorder says so
+    for path in ["fields/u", "fields/v", "fields/tension", "body/segments"] {
+        assert_eq!(rec.entity(path).rows as u64, last + 1, "{path}");
+    }
+    assert!(
+        out.stderr.contains(&format!(
+            "{0} states ({0} with fields): every state's fields recorded",
+            last + 1
+        )),
+        "{}",
+        out.stderr
+    );
+    // chunks Rerun likes: at most twice the lower bound of its object-store profile
+    let (chunks, bound) = chunks_and_lower_bound(&rrd);
+    assert!(
+        chunks <= 2 * bound,
+        "{chunks} chunks, lower bound {bound}: {}",
+        out.stderr
+    );
+}
+
+/// The chunks of the recording at `rrd` (not the layout's) and their lower bound as Rerun's
+/// `rrd stats` counts it: the chunks of each entity's column set merged up to 2 MiB and 65 536
+/// rows (its object-store profile), at least one each.
+fn chunks_and_lower_bound(rrd: &std::path::Path) -> (u64, u64) {
+    use rerun::dataframe::external::re_chunk_store::{ChunkStore, ChunkStoreConfig};
+    use rerun::SizeBytes;
+    let file = std::fs::File::open(rrd).unwrap();
+    let stores = ChunkStore::from_rrd_reader(
+        &ChunkStoreConfig::ALL_DISABLED,
+        &mut std::io::BufReader::new(file),
+    )
+    .unwrap();
+    let mut groups: std::collections::BTreeMap<String, (u64, u64)> = Default::default();
+    let mut chunks = 0;
+    for (id, store) in &stores {
+        if !id.is_recording() {
+            continue;
+        }
+        for c in store.iter_physical_chunks() {
+            if c.is_static() {
+                continue;
+            }
+            chunks += 1;
+            let mut columns: Vec<String> = c.components().keys().map(|k| k.to_string()).collect();
+            columns.sort();
+            let g = groups
+                .entry(format!("{}|{}", c.entity_path(), columns.join(",")))
+                .or_default();
+            g.0 += c.heap_size_bytes();
+            g.1 += c.num_rows() as u64;
+        }
+    }
+    let bound = groups
+        .values()
+        .map(|&(bytes, rows)| bytes.div_ceil(2 << 20).max(rows.div_ceil(65_536)).max(1))
+        .sum();
+    (chunks, bound)
 }
 
 #[test]

@@ -10,6 +10,99 @@ use zenoh::Wait;
 use crawler_e2e::{json, read_recording, repo_root, simulate, Recording, Run};
 use crawler_protocol::{decode, Actuation, RunKeys, State, WaveMsg};
 
+/// For each of `paths`, the steps at which the recording at `rrd` has a row of it, read with
+/// Rerun's dataframe API (a query on the step timeline, one entity at a time, rows where its
+/// first component is set).
+fn dataframe_steps(rrd: &std::path::Path, paths: &[&str]) -> BTreeMap<String, Vec<i64>> {
+    use rerun::dataframe::external::arrow::array::{Array, Int64Array};
+    use rerun::dataframe::external::re_chunk_store::ColumnDescriptor;
+    use rerun::dataframe::{
+        ChunkStoreConfig, EntityPathFilter, QueryEngine, QueryExpression, TimelineName,
+    };
+    let engines = QueryEngine::from_rrd_filepath(&ChunkStoreConfig::DEFAULT, rrd)
+        .unwrap_or_else(|e| panic!("the dataframe API cannot open {}: {e:#}", rrd.display()));
+    let (_, engine) = engines
+        .iter()
+        .find(|(id, _)| id.is_recording())
+        .expect("a recording store");
+    let mut out = BTreeMap::new();
+    for &path in paths {
+        let filter = EntityPathFilter::parse_strict(format!("/{path}")).unwrap();
+        let contents = engine
+            .iter_entity_paths_sorted(&filter)
+            .map(|p| (p, None))
+            .collect();
+        let mut query = QueryExpression {
+            filtered_index: Some(TimelineName::from("step")),
+            view_contents: Some(contents),
+            ..Default::default()
+        };
+        let schema = engine.selected_schema_for_query(&query);
+        let first = schema.iter().find_map(|c| match c {
+            ColumnDescriptor::Component(c) if !c.is_static => Some(c.clone()),
+            _ => None,
+        });
+        let Some(first) = first else {
+            out.insert(path.to_string(), Vec::new());
+            continue;
+        };
+        query.filtered_is_not_null = Some(first.into());
+        let mut steps = Vec::new();
+        for batch in engine.query(query).into_batch_iter() {
+            let column = batch
+                .column_by_name("step")
+                .expect("a step column")
+                .as_any()
+                .downcast_ref::<Int64Array>()
+                .expect("steps are integers")
+                .clone();
+            steps.extend((0..column.len()).map(|i| column.value(i)));
+        }
+        out.insert(path.to_string(), steps);
+    }
+    out
+}
+
+/// Rows of the boxes at `path` in the recording at `rrd`, in step order: the step, the boxes'
+/// centres and their half sizes.
+type BoxRows = Vec<(i64, Vec<[f32; 2]>, Vec<[f32; 2]>)>;
+fn boxes(rrd: &std::path::Path, path: &str) -> BoxRows {
+    use rerun::dataframe::external::re_chunk_store::{ChunkStore, ChunkStoreConfig};
+    let file = std::fs::File::open(rrd).unwrap();
+    let stores = ChunkStore::from_rrd_reader(
+        &ChunkStoreConfig::ALL_DISABLED,
+        &mut std::io::BufReader::new(file),
+    )
+    .unwrap();
+    let centres = rerun::Boxes2D::descriptor_centers().component;
+    let halves = rerun::Boxes2D::descriptor_half_sizes().component;
+    let mut out = BoxRows::new();
+    for (id, store) in &stores {
+        if !id.is_recording() {
+            continue;
+        }
+        for chunk in store.iter_physical_chunks() {
+            if chunk.entity_path().to_string() != format!("/{path}") {
+                continue;
+            }
+            let Some(steps) = chunk.timelines().get(&rerun::TimelineName::from("step")) else {
+                continue;
+            };
+            let c = chunk.iter_component::<rerun::components::Position2D>(centres);
+            let h = chunk.iter_component::<rerun::components::HalfSize2D>(halves);
+            for (i, (c, h)) in c.zip(h).enumerate() {
+                out.push((
+                    steps.times_raw()[i],
+                    c.iter().map(|p| [p.x(), p.y()]).collect(),
+                    h.iter().map(|p| [p.0.x(), p.0.y()]).collect(),
+                ));
+            }
+        }
+    }
+    out.sort_by_key(|r| r.0);
+    out
+}
+
 const PLANT: &[&str] = &["--eps", "1", "--t-end", "8", "--json"];
 const WAVE: &[&str] = &["--policy", "wave", "--f0", "0.2", "--alpha", "0.5"];
 
@@ -104,21 +197,42 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
         tail.steps.windows(2).all(|w| w[1] == w[0] + 1),
         "states out of order or missing"
     );
-    // fields every 2nd step (no decimation needed at this size, or fewer with it)
-    let u = rec.entity("fields/u");
+    // the fields of every 2nd state, and the last, read with the dataframe API: nothing thinned
+    let every_2nd: Vec<i64> = (0..=last as i64)
+        .filter(|n| n % 2 == 0 || *n == last as i64)
+        .collect();
+    let fields = [
+        "fields/u",
+        "fields/v",
+        "fields/tension",
+        "body/segments",
+        "body/world",
+    ];
+    for (path, steps) in dataframe_steps(&rrd, &fields) {
+        assert_eq!(steps, every_2nd, "{path}");
+    }
+    assert_eq!(rec.entity("fields/u").rows, every_2nd.len());
     assert!(
-        (u.rows as u64) <= last / 2 + 1 && u.rows > 1000,
-        "fields rows {}",
-        u.rows
+        b.stderr.contains(&format!(
+            "{} states ({} with fields): the fields of every 2nd state recorded",
+            last + 1,
+            every_2nd.len()
+        )),
+        "{}",
+        b.stderr
     );
-    assert_eq!(rec.entity("fields/v").rows, u.rows);
-    assert_eq!(rec.entity("body/points").rows, u.rows);
     assert!(rec.entity("heatmap/u").rows >= 1);
-    // per-period metrics with the models' predictions overlaid
+    // per-period metrics with the models' predictions overlaid, and the running (clock) blocks
     let blocks = rec.entity("metrics/velocity/plant").rows;
     assert!(blocks >= 40, "{blocks} metric blocks; bridge: {}", b.stderr);
-    assert_eq!(rec.entity("metrics/velocity/improved").rows, blocks);
-    assert_eq!(rec.entity("metrics/power/paper").rows, blocks);
+    assert!(rec.entity("metrics/velocity/improved").rows >= blocks);
+    assert_eq!(
+        rec.entity("metrics/power/paper").rows,
+        rec.entity("metrics/velocity/improved").rows
+    );
+    // a clock block every numerics.block = 2 pi / 74.3 s (the scenario's period) from t = 0
+    let running = rec.entity("metrics/velocity/running").rows;
+    assert_eq!(running, 94, "clock blocks of 84.6 ms in 8 s");
     // stick-slip: lanes and episode log
     assert!(
         rec.entities
@@ -167,8 +281,8 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
 }
 
 /// A controller that drives the body with a field (the `reflex` policy: a new field every step):
-/// the recording holds, at every state whose fields it recorded (every 8th here, or fewer when it
-/// decimates), the field the controller sent for the step before, value for value.
+/// the recording holds, at every state whose fields it recorded (every 8th here), the field the
+/// controller sent for the step before, value for value.
 #[test]
 fn a_recording_holds_the_field_the_plant_applied() {
     let run = Run::new("recfield");
@@ -189,15 +303,18 @@ fn a_recording_holds_the_field_the_plant_applied() {
     assert_eq!(sent.len() as u64, last, "the spy saw every answer");
     let rec = read_recording(&rrd).unwrap();
     let field = &rec.entity("actuation/applied/field").bars;
-    // the states whose fields were recorded, but the first (nothing applied before it)
+    // the states whose fields were recorded, but the first (nothing applied before it): every
+    // 8th and the last
     let u = rec.entity("fields/u");
-    assert_eq!(u.steps.first(), Some(&0));
+    let every_8th: Vec<i64> = (0..=last as i64)
+        .filter(|n| n % 8 == 0 || *n == last as i64)
+        .collect();
+    assert_eq!(u.steps, every_8th);
     assert_eq!(
         field.iter().map(|b| b.0).collect::<Vec<_>>(),
         u.steps[1..],
         "the applied field is recorded with the other fields"
     );
-    assert!(field.len() as u64 >= last / 64, "{} rows", field.len());
     let mut changed = 0;
     for (step, values) in field {
         assert!(
@@ -323,8 +440,12 @@ fn patchy_pipe_eps(x: f64) -> f64 {
 }
 
 /// Plant (`scenario` on `cells` cells, to t = 6 s, just past the 5 s of settling), recorder and
-/// a resonant wave controller (f0 = 1 N); the recording, once all three ended well.
-fn record_wave_run(run: &Run, scenario: &std::path::Path, cells: usize) -> Recording {
+/// a resonant wave controller (f0 = 1 N); the recording and its path, once all three ended well.
+fn record_wave_run(
+    run: &Run,
+    scenario: &std::path::Path,
+    cells: usize,
+) -> (Recording, std::path::PathBuf) {
     let rrd = run.path("run.rrd");
     let scenario = scenario.to_str().unwrap();
     let cells = cells.to_string();
@@ -339,7 +460,7 @@ fn record_wave_run(run: &Run, scenario: &std::path::Path, cells: usize) -> Recor
     assert!(controller.wait(Duration::from_secs(30)).status.success());
     let b = bridge.wait(Duration::from_secs(60));
     assert!(b.status.success(), "{}", b.stderr);
-    read_recording(&rrd).unwrap()
+    (read_recording(&rrd).unwrap(), rrd)
 }
 
 #[test]
@@ -347,7 +468,7 @@ fn the_recording_draws_the_pipe_the_plant_resolved_even_when_controllers_are_not
     let run = Run::new("pipe");
     let scenario = repo_root().join("scenarios/patchy-pipe.toml");
     // a short run on a coarse grid, the body's centre starting at X = 0.5 m, a patch's edge
-    let rec = record_wave_run(&run, &scenario, 64);
+    let (rec, _) = record_wave_run(&run, &scenario, 64);
 
     // the map: a step line equal to the scenario's patches, though the plant told controllers
     // only eps = 0.1 (disclose = false)
@@ -425,11 +546,43 @@ fn a_free_body_is_drawn_where_its_nodes_are() {
     let pipe = "\n[pipe]\nstart = 0.0\n\n[[pipe.features]]\nkind = \"patch\"\nfrom = 1.0\nto = 1.5\neps = 0.8\n";
     std::fs::write(&scenario, body + pipe).unwrap();
     // 80 cells: dx = 31.25 mm, node 0 at 15.625 mm
-    let rec = record_wave_run(&run, &scenario, 80);
+    let (rec, rrd) = record_wave_run(&run, &scenario, 80);
 
     let half_cell = 0.5 * 2.5 / 80.0;
-    assert_nodes_drawn_at(&rec, "body/points", half_cell);
     assert_nodes_drawn_at(&rec, "pipe/body", half_cell);
+    // in the body view (the body's frame, in body lengths, its centre of mass at 0) the tail
+    // cell's centre is node 0, at (dx / 2 + u(0, t) - mean u - L / 2) / L; the body starts at
+    // rest, so mean u is the task's distance
+    let cells = boxes(&rrd, "body/segments");
+    assert_eq!(
+        cells.iter().map(|c| c.0).collect::<Vec<_>>(),
+        rec.entity("fields/u").steps
+    );
+    let (tail, distance) = (rec.entity("tail/plant"), rec.entity("task/distance"));
+    assert_eq!(tail.steps, distance.steps);
+    for (step, centres, halves) in &cells {
+        assert_eq!((centres.len(), halves.len()), (80, 80));
+        let k = tail
+            .steps
+            .binary_search(step)
+            .expect("a tail value at every state");
+        let node0 = (half_cell + tail.scalars[k] - distance.scalars[k] - 1.25) / 2.5;
+        assert!(
+            (f64::from(centres[0][0]) - node0).abs() < 1e-6,
+            "step {step}: tail cell at {}, node 0 at {node0}",
+            centres[0][0]
+        );
+        // the cells tile the body: each ends where the next begins
+        for i in 0..79 {
+            let end = centres[i][0] + halves[i][0];
+            let begin = centres[i + 1][0] - halves[i + 1][0];
+            assert!(
+                (end - begin).abs() < 1e-6,
+                "step {step}: cells {i} and {}",
+                i + 1
+            );
+        }
+    }
     // every node on the pipe's line: eps 0.8 on [1, 1.5), 0.1 elsewhere, at its own X
     for (step, points) in &rec.entity("pipe/body").points {
         assert_eq!(points.len(), 80);
@@ -478,4 +631,97 @@ fn a_recorder_whose_plant_dies_closes_the_recording() {
     assert!(b.stderr.contains("recording closed"), "{}", b.stderr);
     let rec = read_recording(&rrd).unwrap();
     assert!(rec.entity("tail/plant").rows > 100);
+}
+
+/// A controller of a user's own that changes its wave every step (the Python example, its
+/// amplitude changed at every answer) restarts the plant's forcing-period blocks at every step,
+/// so it closes none of them; its metric panels are full all the same: the plant's clock blocks
+/// (one every `numerics.block` seconds of the run, whatever the actuation does) give the running
+/// V, P, M, stress and stuck fraction, and every state its own values.
+#[test]
+fn a_controller_that_changes_its_wave_every_step_has_full_metric_panels() {
+    let run = Run::new("everystep");
+    let rrd = run.path("every.rrd");
+    // the example controller, its wave's amplitude made to change at every step
+    let wrapper = run.path("changing_controller.py");
+    std::fs::write(
+        &wrapper,
+        format!(
+            r#"import runpy, sys, msgpack
+pack = msgpack.packb
+def packb(obj, *args, **kwargs):
+    if isinstance(obj, dict) and obj.get("wave"):
+        wave = dict(obj["wave"])
+        wave["f0"] = wave["f0"] * (1.0 + 0.2 * (obj["step"] % 5) / 5.0)
+        obj = dict(obj, wave=wave)
+    return pack(obj, *args, **kwargs)
+msgpack.packb = packb
+example = {example:?}
+sys.argv = [example] + sys.argv[1:]
+runpy.run_path(example, run_name="__main__")
+"#,
+            example = repo_root()
+                .join("examples/python_controller.py")
+                .display()
+                .to_string()
+        ),
+    )
+    .unwrap();
+    let plant = run.plant(&["--eps", "1", "--t-end", "6", "--json"]);
+    let bridge = run.bridge(&rrd, &[]);
+    bridge.wait_for_stderr("plant found", Duration::from_secs(30));
+    let (_spy, sent) = spy_actuation(&run);
+    let controller = run.python_example(
+        wrapper.to_str().unwrap(),
+        &["--f0", "0.2", "--alpha", "0.5"],
+    );
+    let p = plant.wait(Duration::from_secs(120));
+    let c = controller.wait(Duration::from_secs(60));
+    let b = bridge.wait(Duration::from_secs(60));
+    assert!(p.status.success(), "plant: {}", p.stderr);
+    assert!(c.status.success(), "controller: {}", c.stderr);
+    assert!(b.status.success(), "bridge: {}", b.stderr);
+    let report = json(&p.stdout);
+    let last = report["macro_steps"].as_u64().unwrap();
+    // clock blocks of the scenario's forcing period 2 pi / (k c), c = sqrt(A_c E / rho), from
+    // t = 0: block j - 1 closes at the first internal step starting at or after j periods, and
+    // the run's last internal step starts at t_end - dt
+    let (t_end, dt) = (
+        report["t_end"].as_f64().unwrap(),
+        report["dt"].as_f64().unwrap(),
+    );
+    let omega = std::f64::consts::TAU * (1e-4f64 * 140e3 / 0.1).sqrt();
+    let period = std::f64::consts::TAU / omega;
+    let clock_blocks = (1..)
+        .take_while(|&j| f64::from(j) * period <= t_end - dt)
+        .count();
+    // the amplitude did change at every step
+    let sent = sent.lock().unwrap();
+    let f0: Vec<f64> = sent.values().filter_map(|a| a.wave.map(|w| w.f0)).collect();
+    assert!(f0.windows(2).all(|w| w[0] != w[1]), "a wave that stays");
+    let rec = read_recording(&rrd).unwrap();
+    // no forcing-period block ever closes
+    assert_eq!(rec.entity("metrics/velocity/plant").rows, 0);
+    // a clock block every 2 pi / 74.3 s (the scenario's period) of the 6 s run: about 70
+    assert!((69..=72).contains(&clock_blocks), "{clock_blocks}");
+    for metric in [
+        "velocity",
+        "power",
+        "mileage",
+        "max_stress",
+        "stuck_fraction",
+    ] {
+        let running = rec.entity(&format!("metrics/{metric}/running"));
+        assert_eq!(running.rows, clock_blocks, "{metric}: clock blocks");
+        assert!(running.scalars.iter().all(|v| v.is_finite()));
+        // and every state its own values (a mileage only where the step's power is positive)
+        let per_step = rec.entity(&format!("step/{metric}")).rows as u64;
+        if metric == "mileage" {
+            assert!(per_step > last / 2, "{metric}: {per_step} states");
+        } else {
+            assert_eq!(per_step, last + 1, "{metric}: every state");
+        }
+    }
+    let speed = &rec.entity("metrics/velocity/running").scalars;
+    assert!(speed.iter().any(|&v| v > 0.0), "the body crawls: {speed:?}");
 }
