@@ -554,16 +554,15 @@ fn draw_sweep(
     Ok(entries)
 }
 
+/// A plant point of Fig. 5: the swept value, V (m/s) and M (m/J).
+type PlantPoint = (f64, Option<f64>, Option<f64>);
+
 /// Colour of the plant's points in Fig. 5.
 const PLANT: RGBColor = RGBColor(20, 20, 20);
 
 /// The plant at `n` values of the sweep (evenly among its samples, the ends inside), on the
 /// one-wavelength body the models assume, each at its wave's default Courant number: `(x, V, M)`.
-fn plant_points(
-    scenario: &Scenario,
-    sweep: &Sweep,
-    n: usize,
-) -> anyhow::Result<Vec<(f64, Option<f64>, Option<f64>)>> {
+fn plant_points(scenario: &Scenario, sweep: &Sweep, n: usize) -> anyhow::Result<Vec<PlantPoint>> {
     if n == 0 {
         return Ok(Vec::new());
     }
@@ -682,7 +681,7 @@ fn draw_legend(area: &Area, entries: &[LegendEntry]) -> anyhow::Result<()> {
                 .char_indices()
                 .filter(|&(i, c)| c == ' ' && 80 + 52 + text_width(&rest[..i]) <= width as i32)
                 .map(|(i, _)| i)
-                .last();
+                .next_back();
             let Some(cut) = cut else { break };
             split.push((first.then_some(e), rest[..cut].to_string()));
             rest = rest[cut + 1..].to_string();
