@@ -22,13 +22,19 @@ pub const LEVELS: [(f64, RGBColor, &str); 3] = [
 /// Colour of undefined cells.
 pub const UNDEFINED: RGBColor = RGBColor(200, 200, 200);
 
+/// Colour of cells whose value is exactly zero on a logarithmic scale (a body that never sticks).
+pub const ZERO: RGBColor = RGBColor(255, 255, 255);
+
+/// Colour of the dashed line at the plant's Courant switch (`alpha = 1.1`).
+pub const SWITCH: RGBColor = RGBColor(255, 140, 0);
+
 /// How values map to colours.
 #[derive(Debug, Clone, Copy)]
 enum Scale {
     /// log10 |v| from `lo` to `hi` decades (values beyond are clamped); bar labels in percent.
     LogPercent { lo: f64, hi: f64 },
-    /// v from 0 to 1.
-    Unit,
+    /// log10 v of a share from `lo` to 0 decades, exact zeros in [`ZERO`]; labels in percent.
+    LogShare { lo: f64 },
 }
 
 impl Scale {
@@ -38,7 +44,7 @@ impl Scale {
                 let l = v.abs().max(1e-300).log10();
                 ((l - lo) / (hi - lo)).clamp(0.0, 1.0)
             }
-            Scale::Unit => v.clamp(0.0, 1.0),
+            Scale::LogShare { lo } => Scale::LogPercent { lo, hi: 0.0 }.position(v),
         }
     }
 
@@ -60,11 +66,18 @@ impl Scale {
                 if let Some(last) = t.last_mut() {
                     last.1 = format!(">= {}", last.1);
                 }
+                if let Some(first) = t.first_mut() {
+                    first.1 = format!("<= {}", first.1);
+                }
                 t
             }
-            Scale::Unit => (0..=4)
-                .map(|i| (i as f64 / 4.0, format!("{:.2}", i as f64 / 4.0)))
-                .collect(),
+            Scale::LogShare { lo } => {
+                let mut t = Scale::LogPercent { lo, hi: 0.0 }.ticks();
+                if let Some(last) = t.last_mut() {
+                    last.1 = "100 %".into();
+                }
+                t
+            }
         }
     }
 }
@@ -75,6 +88,9 @@ fn trim_pct(p: f64) -> String {
 }
 
 fn color(scale: Scale, v: f64) -> RGBColor {
+    if matches!(scale, Scale::LogShare { .. }) && v == 0.0 {
+        return ZERO;
+    }
     ViridisRGB.get_color(scale.position(v) as f32)
 }
 
@@ -87,6 +103,8 @@ struct Figure<'a> {
     scale: Scale,
     bar_label: &'a str,
     contours: bool,
+    /// What a grey cell means, for the colour bar.
+    undefined: &'a str,
 }
 
 /// Draws every figure of `maps` into `dir`; returns the files written.
@@ -104,9 +122,9 @@ pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>
     let mut figs: Vec<Figure> = Vec::new();
     for model in &maps.models {
         let undefined = if model == "paper" {
-            "grey: undefined (eps C0 / (R0 alpha) > 1, no gamma: the body no longer slides back, it sticks)"
+            "undefined: eps C0 / (R0 alpha) > 1"
         } else {
-            "grey: undefined (no periodic solution found)"
+            "undefined: no periodic solution"
         };
         for &m in &maps.metrics {
             figs.push(Figure {
@@ -116,13 +134,15 @@ pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>
                     m.info().label
                 ),
                 note: format!(
-                    "|{model} / plant - 1|; contours {}; {undefined}",
-                    level_note()
+                    "|{model} / plant - 1|; contours {}; grey: {}",
+                    level_note(),
+                    why_undefined(model)
                 ),
                 panels: &maps.errors[&(model.clone(), m)],
                 scale: err_scale,
                 bar_label: "relative error",
                 contours: true,
+                undefined,
             });
         }
         let w = &worst.iter().find(|(n, _)| n == model).expect("a model").1;
@@ -132,35 +152,39 @@ pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>
                 "{model} model: largest relative error of V, P, M and sigma against the plant"
             ),
             note: format!(
-                "max over the metrics that have an error (a body at rest has no mileage); contours {}; {undefined}",
-                level_note()
+                "max over the metrics that have an error (a body at rest has no mileage); contours {}; grey: {}",
+                level_note(),
+                why_undefined(model)
             ),
             panels: w,
             scale: err_scale,
             bar_label: "relative error",
             contours: true,
+            undefined,
         });
     }
     figs.push(Figure {
         file: format!("{}-plant-stuck-fraction.png", plan.name),
         title: "plant: stuck fraction (share of node-time at rest)".into(),
-        note: "the converged plant's steady window".into(),
+        note: "the plant's steady window at 2N cells, logarithmic; white: never sticks".into(),
         panels: &maps.stuck,
-        scale: Scale::Unit,
+        scale: Scale::LogShare { lo: -4.0 },
         bar_label: "stuck fraction",
         contours: false,
+        undefined: "undefined: no plant run",
     });
     figs.push(Figure {
         file: format!("{}-plant-convergence.png", plan.name),
         title: "plant: estimated discretisation error (N against 2N cells)".into(),
         note: format!(
-            "largest over V, P, M and sigma of |value(2N) - value(N)| / |value(2N)|; contours {}",
+            "largest over V, P, M and sigma of |value(2N) - value(N)| / |value(2N)|; contours {}; grey: withheld where N and 2N agree to round-off (the speed is quantised where the wave moves one cell per step) or the Courant number biases the stick statistics",
             level_note()
         ),
         panels: &maps.convergence,
         scale: err_scale,
         bar_label: "estimated error",
         contours: true,
+        undefined: "not trusted or no run",
     });
     for f in &figs {
         let path = dir.join(&f.file);
@@ -168,6 +192,28 @@ pub fn draw(plan: &Plan, maps: &Maps, dir: &Path) -> anyhow::Result<Vec<PathBuf>
         written.push(path);
     }
     Ok(written)
+}
+
+fn why_undefined(model: &str) -> &'static str {
+    if model == "paper" {
+        "undefined (eps C0 / (R0 alpha) > 1, no gamma: the body no longer slides back, it sticks)"
+    } else {
+        "undefined (no periodic solution found)"
+    }
+}
+
+/// The note under a map's title, with the Courant switch's line explained when the x axis is
+/// `alpha`: the plant's Courant number is 1 below `alpha = 1.1` and `1 / alpha` above, so its
+/// values (and the errors against it) may step there.
+fn notes(maps: &Maps, f: &Figure) -> Vec<String> {
+    let mut lines: Vec<String> = f.note.split("; ").map(str::to_string).collect();
+    if short_name(&maps.x.key) == "alpha" {
+        lines.push(format!(
+            "orange dashes: alpha = {}, where the plant's Courant number switches from 1 to 1/alpha (docs/numerics.md); the plant's values may step there",
+            crawler_physics::scenario::SUPERSONIC_ALPHA
+        ));
+    }
+    lines
 }
 
 fn level_note() -> String {
@@ -187,8 +233,11 @@ fn axis_label(key: &str) -> String {
 
 fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
     let (nr, nc) = (maps.nrows(), maps.ncols());
-    let (pw, ph) = (440u32, 360u32);
-    let (bar_w, head) = (130u32, 70u32);
+    // sized so that the docs' width (about 900 px for three panels) keeps every label legible
+    let (pw, ph) = (480u32, 400u32);
+    let notes = notes(maps, f);
+    let bar_w = 200u32;
+    let head = 52 + 26 * notes.len() as u32;
     let size = (nc as u32 * pw + bar_w, nr as u32 * ph + head);
     let root = BitMapBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE)?;
@@ -196,13 +245,15 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
     top.draw(&Text::new(
         f.title.clone(),
         (14, 8),
-        ("sans-serif", 22).into_font().color(&BLACK),
+        ("sans-serif", 30).into_font().color(&BLACK),
     ))?;
-    top.draw(&Text::new(
-        f.note.clone(),
-        (14, 40),
-        ("sans-serif", 14).into_font().color(&RGBColor(60, 60, 60)),
-    ))?;
+    for (i, line) in notes.iter().enumerate() {
+        top.draw(&Text::new(
+            line.clone(),
+            (14, 48 + 26 * i as i32),
+            ("sans-serif", 20).into_font().color(&RGBColor(60, 60, 60)),
+        ))?;
+    }
     let (grid_area, bar_area) = body.split_horizontally(nc as u32 * pw);
     let panels = grid_area.split_evenly((nr, nc));
     let xs: Vec<f64> = maps
@@ -245,18 +296,20 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
         let (x0, x1) = (ex[0].min(ex[ex.len() - 1]), ex[0].max(ex[ex.len() - 1]));
         let (y0, y1) = (ey[0].min(ey[ey.len() - 1]), ey[0].max(ey[ey.len() - 1]));
         let mut chart = ChartBuilder::on(area)
-            .caption(caption, ("sans-serif", 16))
+            .caption(caption, ("sans-serif", 22))
             .margin(8)
-            .x_label_area_size(38)
-            .y_label_area_size(46)
+            .x_label_area_size(52)
+            .y_label_area_size(62)
             .build_cartesian_2d(x0..x1, y0..y1)?;
         chart
             .configure_mesh()
             .disable_mesh()
             .x_desc(axis_label(&maps.x.key))
             .y_desc(axis_label(&maps.y.key))
-            .label_style(("sans-serif", 12))
-            .axis_desc_style(("sans-serif", 13))
+            .x_labels(6)
+            .y_labels(6)
+            .label_style(("sans-serif", 18))
+            .axis_desc_style(("sans-serif", 19))
             .draw()?;
         let grid = &f.panels[pi];
         let nx = xs.len();
@@ -271,6 +324,15 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
                 Rectangle::new([(ex[ix], ey[iy]), (ex[ix + 1], ey[iy + 1])], c.filled())
             })
         }))?;
+        let switch = crawler_physics::scenario::SUPERSONIC_ALPHA;
+        if short_name(&maps.x.key) == "alpha" && x0 < switch && switch < x1 {
+            chart.draw_series(DashedLineSeries::new(
+                vec![(switch, y0), (switch, y1)],
+                8,
+                6,
+                SWITCH.stroke_width(2),
+            ))?;
+        }
         if f.contours {
             let logs: Vec<Option<f64>> = grid
                 .iter()
@@ -286,8 +348,8 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
             }
         }
     }
-    // colour bar
-    let bar = bar_area.margin(60, 70, 16, 60);
+    // colour bar, with a swatch for every category the panels can show
+    let bar = bar_area.margin(80, 150, 16, 80);
     let (bw, bh) = bar.dim_in_pixel();
     let steps = 200;
     for i in 0..steps {
@@ -308,25 +370,92 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
         bar.draw(&PathElement::new(vec![(28, y), (34, y)], BLACK))?;
         bar.draw(&Text::new(
             label,
-            (38, y - 7),
-            ("sans-serif", 13).into_font(),
+            (38, y - 9),
+            ("sans-serif", 18).into_font(),
         ))?;
     }
     bar_area.draw(&Text::new(
         f.bar_label.to_string(),
-        (16, 24),
-        ("sans-serif", 13).into_font(),
+        (16, 40),
+        ("sans-serif", 19).into_font(),
     ))?;
-    if matches!(f.scale, Scale::LogPercent { .. }) {
-        let y = bh as i32 + 14;
-        bar.draw(&Rectangle::new([(0, y), (28, y + 14)], UNDEFINED.filled()))?;
-        bar.draw(&Text::new(
-            "undefined",
-            (34, y),
-            ("sans-serif", 12).into_font(),
+    let mut swatches = vec![(UNDEFINED, f.undefined.to_string())];
+    if matches!(f.scale, Scale::LogShare { .. }) {
+        swatches.insert(0, (ZERO, "0: never sticks".to_string()));
+    }
+    // below the lowest tick's label, one block per category (drawn on the bar's whole column:
+    // the bar's own area clips at its bottom)
+    let (bx, mut y) = (16, 80 + bh as i32 + 24);
+    for (c, label) in &swatches {
+        bar_area.draw(&Rectangle::new([(bx, y), (bx + 28, y + 18)], c.filled()))?;
+        bar_area.draw(&Rectangle::new(
+            [(bx, y), (bx + 28, y + 18)],
+            BLACK.stroke_width(1),
         ))?;
+        for part in wrap(label, 14) {
+            bar_area.draw(&Text::new(
+                part,
+                (bx + 36, y),
+                ("sans-serif", 16).into_font(),
+            ))?;
+            y += 20;
+        }
+        y += 8;
     }
     root.present()
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
     Ok(())
+}
+
+/// Splits `text` at spaces into lines of at most about `width` characters.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for w in text.split(' ') {
+        match lines.last_mut() {
+            Some(l) if l.len() + 1 + w.len() <= width => {
+                l.push(' ');
+                l.push_str(w);
+            }
+            _ => lines.push(w.to_string()),
+        }
+    }
+    lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_error_scales_ends_say_that_values_beyond_them_are_clamped() {
+        let t = Scale::LogPercent { lo: -4.0, hi: 0.0 }.ticks();
+        assert_eq!(t.len(), 5);
+        assert_eq!(t[0], (0.0, "<= 0.01 %".to_string()));
+        assert_eq!(t[4], (1.0, ">= 100 %".to_string()));
+    }
+
+    #[test]
+    fn the_stuck_fraction_is_logarithmic_and_zero_has_its_own_colour() {
+        let s = Scale::LogShare { lo: -4.0 };
+        let t = s.ticks();
+        assert_eq!(t.last().unwrap().1, "100 %");
+        // one decade per quarter of the bar: 0.1 % and 10 % are a half apart
+        assert!((s.position(0.1) - s.position(0.001) - 0.5).abs() < 1e-12);
+        assert_eq!(color(s, 0.0), ZERO);
+        assert_ne!(color(s, 1e-4), ZERO);
+        // on the error scale zero is the bottom of the bar (no error), not a category
+        assert_eq!(
+            color(Scale::LogPercent { lo: -4.0, hi: 0.0 }, 0.0),
+            ViridisRGB.get_color(0.0)
+        );
+    }
+
+    #[test]
+    fn a_long_category_is_wrapped_at_spaces() {
+        assert_eq!(
+            wrap("undefined: eps C0 / (R0 alpha) > 1", 14),
+            vec!["undefined: eps", "C0 / (R0", "alpha) > 1"]
+        );
+        assert_eq!(wrap("short", 14), vec!["short"]);
+    }
 }

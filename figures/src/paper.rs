@@ -39,6 +39,8 @@ pub struct FigureOptions {
     pub plane_points: usize,
     /// Points per axis of the Fig. 6 planes with the improved model (each cell solves a periodic problem).
     pub plane_points_improved: usize,
+    /// Plant runs per Fig. 5 sweep, drawn as points beside the models' curves (0: none).
+    pub plant_points: usize,
 }
 
 impl Default for FigureOptions {
@@ -47,6 +49,7 @@ impl Default for FigureOptions {
             sweep_points: 160,
             plane_points: 120,
             plane_points_improved: 36,
+            plant_points: 6,
         }
     }
 }
@@ -286,9 +289,11 @@ fn fig5(scenario: &Scenario, out: &Path, opts: FigureOptions) -> anyhow::Result<
     let mut files = Vec::new();
     let png = out.join("fig5.png");
     {
-        let root = BitMapBackend::new(&png, (2100, 1250)).into_drawing_area();
+        let root = BitMapBackend::new(&png, (2100, 1400)).into_drawing_area();
         root.fill(&WHITE)?;
         let (title, body) = root.split_vertically(50);
+        let (body, legend) = body.split_vertically(1400 - 50 - 110);
+        let mut entries: Vec<LegendEntry> = Vec::new();
         title.draw_text(
             &format!(
                 "Fig. 5: speed V and mileage M = V / P on the one-wavelength body (eps = {}, n_F = {}); \
@@ -332,6 +337,16 @@ fn fig5(scenario: &Scenario, out: &Path, opts: FigureOptions) -> anyhow::Result<
             let path = out.join(format!("fig5_{}.csv", sweep.name));
             std::fs::write(&path, csv)?;
             files.push(path);
+            let plant = plant_points(scenario, sweep, opts.plant_points)?;
+            if !plant.is_empty() {
+                let mut csv = format!("{},V_plant,M_plant\n", sweep.name);
+                for (x, v, m) in &plant {
+                    writeln!(csv, "{x},{},{}", num(*v), num(*m))?;
+                }
+                let path = out.join(format!("fig5_{}_plant.csv", sweep.name));
+                std::fs::write(&path, csv)?;
+                files.push(path);
+            }
             let mut bands = Vec::new();
             for (m, (mname, _, color)) in models().iter().enumerate() {
                 for (kind, shade) in [(Status::Undefined, 0.5), (Status::Backward, 0.3)] {
@@ -370,7 +385,11 @@ fn fig5(scenario: &Scenario, out: &Path, opts: FigureOptions) -> anyhow::Result<
                             .collect(),
                     })
                     .collect();
-                draw_sweep(
+                let points: Vec<(f64, Option<f64>)> = plant
+                    .iter()
+                    .map(|&(x, v, m)| (x, if row == 0 { v } else { m }))
+                    .collect();
+                entries.extend(draw_sweep(
                     &panels[row * 3 + col],
                     &format!(
                         "{} vs {} ({})",
@@ -384,9 +403,14 @@ fn fig5(scenario: &Scenario, out: &Path, opts: FigureOptions) -> anyhow::Result<
                     &curves,
                     &bands,
                     &sweep.markers,
-                )?;
+                    &points,
+                )?);
             }
         }
+        // one legend for the figure: every entry once
+        let mut seen = std::collections::HashSet::new();
+        entries.retain(|e| seen.insert(e.label.clone()));
+        draw_legend(&legend, &entries)?;
         root.present()?;
     }
     files.push(png);
@@ -410,12 +434,21 @@ fn draw_sweep(
     curves: &[Curve],
     bands: &[Band],
     markers: &[Marker],
-) -> anyhow::Result<()> {
+    plant: &[(f64, Option<f64>)],
+) -> anyhow::Result<Vec<LegendEntry>> {
     let xs = curves.iter().flat_map(|c| c.points.iter().map(|p| p.0));
     let (x0, x1) = bounds(xs);
+    // a little room at both ends, so that a marker at the sweep's end is not hidden by the axis
+    let (x0, x1) = if log.0 {
+        (x0 / 1.06, x1 * 1.06)
+    } else {
+        let pad = 0.02 * (x1 - x0);
+        (x0 - pad, x1 + pad)
+    };
     let ys = curves
         .iter()
         .flat_map(|c| c.points.iter().filter_map(|p| p.1))
+        .chain(plant.iter().filter_map(|p| p.1))
         .filter(|&y| y.is_finite() && (!log.1 || y > 0.0));
     let (y0, y1) = bounds(ys);
     let (y0, y1) = if !y0.is_finite() {
@@ -433,21 +466,24 @@ fn draw_sweep(
         (x1 - x0, y1 - y0)
     };
     let y_span = if log.1 { y0 } else { y_span };
-    let (main, legend) = area.split_vertically(area.dim_in_pixel().1 - 95);
+    let main = area;
     let mut entries: Vec<LegendEntry> = Vec::new();
     macro_rules! panel {
         ($x:expr, $y:expr) => {{
-            let mut chart = ChartBuilder::on(&main)
-                .caption(title, ("sans-serif", 17))
-                .margin(10)
-                .x_label_area_size(42)
-                .y_label_area_size(78)
+            let mut chart = ChartBuilder::on(main)
+                .caption(title, ("sans-serif", 21))
+                .margin(14)
+                .x_label_area_size(60)
+                .y_label_area_size(104)
                 .build_cartesian_2d($x, $y)?;
             chart
                 .configure_mesh()
                 .x_desc(x_label)
                 .y_desc(y_label)
-                .label_style(("sans-serif", 13))
+                .x_labels(7)
+                .y_labels(7)
+                .label_style(("sans-serif", 20))
+                .axis_desc_style(("sans-serif", 21))
                 .y_label_formatter(&|v| tick(*v, y_span))
                 .x_label_formatter(&|v| tick(*v, x_span))
                 .draw()?;
@@ -491,6 +527,22 @@ fn draw_sweep(
                 }
                 entries.push(LegendEntry::line(&c.label, c.color));
             }
+            let shown: Vec<(f64, f64)> = plant
+                .iter()
+                .filter_map(|&(x, y)| y.filter(|&y| !log.1 || y > 0.0).map(|y| (x, y)))
+                .collect();
+            if !shown.is_empty() {
+                chart.draw_series(shown.iter().map(|&p| Circle::new(p, 7, WHITE.filled())))?;
+                chart.draw_series(
+                    shown
+                        .iter()
+                        .map(|&p| Circle::new(p, 7, PLANT.stroke_width(3))),
+                )?;
+                entries.push(LegendEntry::point(
+                    "plant (simulated, steady window)",
+                    PLANT,
+                ));
+            }
         }};
     }
     match log {
@@ -499,7 +551,48 @@ fn draw_sweep(
         (false, true) => panel!(x0..x1, (y0..y1).log_scale()),
         (true, true) => panel!((x0..x1).log_scale(), (y0..y1).log_scale()),
     }
-    draw_legend(&legend, &entries)
+    Ok(entries)
+}
+
+/// A plant point of Fig. 5: the swept value, V (m/s) and M (m/J).
+type PlantPoint = (f64, Option<f64>, Option<f64>);
+
+/// Colour of the plant's points in Fig. 5.
+const PLANT: RGBColor = RGBColor(20, 20, 20);
+
+/// The plant at `n` values of the sweep (evenly among its samples, the ends inside), on the
+/// one-wavelength body the models assume, each at its wave's default Courant number: `(x, V, M)`.
+fn plant_points(scenario: &Scenario, sweep: &Sweep, n: usize) -> anyhow::Result<Vec<PlantPoint>> {
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let m = sweep.xs.len();
+    let xs: Vec<f64> = (0..n)
+        .map(|i| sweep.xs[((2 * i + 1) * m / (2 * n)).min(m - 1)])
+        .collect();
+    let runs = parallel_map(
+        &xs,
+        |&x| -> anyhow::Result<(f64, Option<f64>, Option<f64>)> {
+            let wave = (sweep.wave_of)(x);
+            let mut s = scenario.with_wave(wave, Some(wave.wavelength()))?;
+            s.plant.numerics.courant = crawler_physics::scenario::default_courant(s.alpha());
+            let r = crawler_physics::simulate::simulate(
+                &s,
+                crawler_physics::simulate::SimulateOptions {
+                    max_episodes: 0,
+                    progress: None,
+                },
+            )?;
+            let v = r.values();
+            Ok((
+                x,
+                v.get(crawler_facts::Metric::Velocity),
+                v.get(crawler_facts::Metric::Mileage)
+                    .filter(|_| r.velocity > 0.0),
+            ))
+        },
+    );
+    runs.into_iter().collect()
 }
 
 /// An axis label: about three significant digits against the axis span, `0` for round-off
@@ -571,18 +664,44 @@ impl LegendEntry {
 /// Draws `entries` left to right in rows inside `area`.
 fn draw_legend(area: &Area, entries: &[LegendEntry]) -> anyhow::Result<()> {
     let (width, _) = area.dim_in_pixel();
-    let style: TextStyle = ("sans-serif", 14).into_font().into();
+    let style: TextStyle = ("sans-serif", 19).into_font().into();
     let (mut x, mut y) = (80i32, 4i32);
+    let text_width = |t: &str| {
+        area.estimate_text_size(t, &style)
+            .map_or(10 * t.len() as u32, |s| s.0) as i32
+    };
+    // an entry longer than a row is split at its last space that fits, and the rest follows as
+    // an entry of its own without a symbol
+    let mut split: Vec<(Option<&LegendEntry>, String)> = Vec::new();
     for e in entries {
-        let text_w = area
-            .estimate_text_size(&e.label, &style)
-            .map_or(8 * e.label.len() as u32, |s| s.0) as i32;
+        let mut rest = e.label.clone();
+        let mut first = true;
+        while 80 + 52 + text_width(&rest) > width as i32 {
+            let cut = rest
+                .char_indices()
+                .filter(|&(i, c)| c == ' ' && 80 + 52 + text_width(&rest[..i]) <= width as i32)
+                .map(|(i, _)| i)
+                .next_back();
+            let Some(cut) = cut else { break };
+            split.push((first.then_some(e), rest[..cut].to_string()));
+            rest = rest[cut + 1..].to_string();
+            first = false;
+        }
+        split.push((first.then_some(e), rest));
+    }
+    for (entry, label) in &split {
+        let text_w = text_width(label);
         let w = 30 + text_w + 22;
         if x + w > width as i32 && x > 80 {
             x = 80;
-            y += 22;
+            y += 28;
         }
-        let cy = y + 9;
+        let Some(e) = entry else {
+            area.draw_text(label, &style, (x + 30, y + 1))?;
+            x += w;
+            continue;
+        };
+        let cy = y + 11;
         match e.kind {
             LegendKind::Patch => area.draw(&Rectangle::new(
                 [(x, cy - 7), (x + 22, cy + 7)],
@@ -620,7 +739,7 @@ fn draw_legend(area: &Area, entries: &[LegendEntry]) -> anyhow::Result<()> {
                 RGBColor(120, 120, 120).stroke_width(1),
             ))?;
         }
-        area.draw_text(&e.label, &style, (x + 30, y + 1))?;
+        area.draw_text(label, &style, (x + 30, y + 1))?;
         x += w;
     }
     Ok(())
@@ -701,7 +820,7 @@ fn fig6(scenario: &Scenario, out: &Path, opts: FigureOptions) -> anyhow::Result<
     let mut csv_a = String::from("omega,k,model,V_unconstrained_f0_1.5N,status\n");
     let mut csv_b = String::from("omega,k,model,f0,V,binding,infeasibility\n");
     {
-        let root = BitMapBackend::new(&png, (2000, 1700)).into_drawing_area();
+        let root = BitMapBackend::new(&png, (2000, 1800)).into_drawing_area();
         root.fill(&WHITE)?;
         let (title, body) = root.split_vertically(50);
         title.draw_text(
@@ -978,22 +1097,38 @@ fn draw_plane(area: &Area, plane: &Plane) -> anyhow::Result<()> {
     };
     let cmap = &plotters::style::colors::colormaps::ViridisRGB;
     let color_of = |v: f64| cmap.get_color(((v - vmin) / (vmax - vmin)).clamp(0.0, 1.0));
-    let (h, legend_h) = (area.dim_in_pixel().1, 74);
+    let (h, legend_h) = (area.dim_in_pixel().1, 120);
     let (top, legend) = area.split_vertically(h - legend_h);
     let (w, _) = top.dim_in_pixel();
-    let (main, bar) = top.split_horizontally(w - 150);
+    let (main, bar) = top.split_horizontally(w - 215);
+    // the plotted range: the cells, and room for the mark's circle where it sits on an edge
+    let (mut xr, mut yr) = (
+        (w0 - 0.5 * dw, w1 + 0.5 * dw),
+        (k0 - 0.5 * dk, k1 + 0.5 * dk),
+    );
+    if let Some(((w, k), _)) = &plane.mark {
+        let room = |(lo, hi): (f64, f64), v: f64| {
+            let pad = 0.05 * (hi - lo);
+            (lo.min(v - pad), hi.max(v + pad))
+        };
+        xr = room(xr, *w);
+        yr = room(yr, *k);
+    }
     let mut chart = ChartBuilder::on(&main)
-        .caption(&plane.title, ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(42)
-        .y_label_area_size(62)
-        .build_cartesian_2d(w0 - 0.5 * dw..w1 + 0.5 * dw, k0 - 0.5 * dk..k1 + 0.5 * dk)?;
+        .caption(&plane.title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(56)
+        .y_label_area_size(80)
+        .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)?;
     chart
         .configure_mesh()
         .disable_mesh()
         .x_desc("omega [rad/s]")
         .y_desc("k [rad/m]")
-        .label_style(("sans-serif", 13))
+        .x_labels(6)
+        .y_labels(6)
+        .label_style(("sans-serif", 19))
+        .axis_desc_style(("sans-serif", 20))
         .x_label_formatter(&|v| tick(*v, w1 - w0))
         .y_label_formatter(&|v| tick(*v, k1 - k0))
         .draw()?;
@@ -1144,16 +1279,28 @@ fn draw_colour_bar(
     let dv = (vmax - vmin) / steps as f64;
     let mut chart = ChartBuilder::on(area)
         .margin_top(40)
-        .margin_bottom(52)
+        .margin_bottom(70)
         .margin_right(8)
-        .y_label_area_size(84)
+        .y_label_area_size(120)
         .build_cartesian_2d(0.0..1.0, vmin..vmax)?;
+    // each panel has its own range: say how wide it is, so that a narrow one is not read as a
+    // strong dependence
+    let span = if vmax.abs() > 0.0 {
+        format!(
+            "V [m/s], this panel's range ({:.1} % of its top)",
+            100.0 * (vmax - vmin) / vmax.abs()
+        )
+    } else {
+        "V [m/s], this panel's range".to_string()
+    };
     chart
         .configure_mesh()
         .disable_mesh()
         .disable_x_axis()
-        .y_desc("V [m/s]")
-        .label_style(("sans-serif", 12))
+        .y_desc(span)
+        .y_labels(8)
+        .axis_desc_style(("sans-serif", 17))
+        .label_style(("sans-serif", 17))
         .y_label_formatter(&|v| tick(*v, vmax - vmin))
         .draw()?;
     chart.draw_series((0..steps).map(|i| {

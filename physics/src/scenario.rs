@@ -380,6 +380,56 @@ impl Scenario {
     pub fn alpha(&self) -> f64 {
         self.wave.omega / self.natural_frequency()
     }
+
+    /// What in the scenario's numerics is known to bias its results, each naming the field, its
+    /// value and what is allowed (empty when nothing is). A Courant number other than
+    /// [`default_courant`] of the wave's `alpha` smears the stick phases' edges once there is dry
+    /// friction (`friction.eps > 0`): at `alpha = 1.7` Courant 0.9 gives a stuck fraction of 0.351
+    /// against 0.390, and the convergence estimate (N against 2N at the same Courant number) does
+    /// not show it (`docs/numerics.md`). Such a scenario still runs (the benchmarks compare
+    /// Courant numbers on purpose); programs print these caveats.
+    pub fn caveats(&self) -> Vec<Caveat> {
+        let mut out = Vec::new();
+        let alpha = self.alpha();
+        let courant = self.plant.numerics.courant;
+        let unbiased = default_courant(alpha);
+        if self.plant.friction.eps > 0.0 && (courant - unbiased).abs() > 1e-9 * unbiased {
+            out.push(Caveat {
+                field: "numerics.courant",
+                value: courant,
+                allowed: format!(
+                    "{unbiased:.6} (the default at alpha = {alpha:.4}: {}) for unbiased stick statistics; other values smear the stick phases' edges (stuck fraction, episodes)",
+                    if alpha > SUPERSONIC_ALPHA {
+                        "1 / alpha"
+                    } else {
+                        "1"
+                    }
+                ),
+            });
+        }
+        out
+    }
+}
+
+/// A setting that runs but is known to bias a scenario's results ([`Scenario::caveats`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Caveat {
+    /// The scenario field, e.g. `numerics.courant`.
+    pub field: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// What gives unbiased results, and what the value biases.
+    pub allowed: String,
+}
+
+impl std::fmt::Display for Caveat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} = {} is known to bias the results: use {}",
+            self.field, self.value, self.allowed
+        )
+    }
 }
 
 impl RawScenario {

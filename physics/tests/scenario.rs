@@ -381,3 +381,59 @@ fn a_pair_of_numbers_is_exactly_two() {
     let e = load(&ramp("[0.1]")).unwrap_err().to_string();
     assert!(e.contains("invalid length 1"), "{e}");
 }
+
+/// The stick-slip scenario with `alpha` and, if given, `numerics.courant` (and `eps`).
+fn stick_slip_at(alpha: f64, courant: Option<f64>, eps: f64) -> Scenario {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+    let text = std::fs::read_to_string(dir.join("stick-slip.toml")).unwrap();
+    let text = text
+        .replace("alpha = 0.5 ", &format!("alpha = {alpha} "))
+        .replace("eps = 1.0 ", &format!("eps = {eps} "));
+    let text = match courant {
+        Some(c) => text.replace("# courant ", &format!("courant = {c} #")),
+        None => text,
+    };
+    load(&text).unwrap()
+}
+
+#[test]
+fn a_courant_number_known_to_bias_stick_statistics_is_named_with_what_is_allowed() {
+    // the measured case: Courant 0.9 at alpha 1.7 gives a stuck fraction of 0.351 against 0.390
+    let s = stick_slip_at(1.7, Some(0.9), 1.0);
+    assert_eq!(s.plant.numerics.courant, 0.9);
+    let c = s.caveats();
+    assert_eq!(c.len(), 1, "{c:?}");
+    assert_eq!((c[0].field, c[0].value), ("numerics.courant", 0.9));
+    let text = c[0].to_string();
+    assert!(text.contains("numerics.courant = 0.9"), "{text}");
+    // what is allowed: 1 / alpha, written out
+    assert!(text.contains("0.588235"), "{text}");
+    assert!(text.contains("1 / alpha"), "{text}");
+    // Courant 1 at exact resonance's side of the switch is biased too when it is not the default
+    let below = stick_slip_at(0.5, Some(0.9), 1.0).caveats();
+    assert_eq!(below.len(), 1);
+    assert!(
+        below[0].to_string().contains("use 1.000000 "),
+        "{}",
+        below[0]
+    );
+    let above = stick_slip_at(1.7, Some(1.0), 1.0).caveats();
+    assert_eq!(
+        above.len(),
+        1,
+        "Courant 1 above alpha 1.1 smears the stick phases too"
+    );
+}
+
+#[test]
+fn the_default_courant_number_and_a_body_without_dry_friction_have_no_caveat() {
+    for alpha in [0.5, 1.0, 1.1, 1.7, 2.0] {
+        let s = stick_slip_at(alpha, None, 1.0);
+        assert!(s.caveats().is_empty(), "alpha {alpha}: {:?}", s.caveats());
+        // the default written out is not a caveat either
+        let c = s.plant.numerics.courant;
+        assert!(stick_slip_at(alpha, Some(c), 1.0).caveats().is_empty());
+    }
+    // without dry friction there are no stick phases to bias
+    assert!(stick_slip_at(1.7, Some(0.9), 0.0).caveats().is_empty());
+}

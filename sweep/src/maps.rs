@@ -9,7 +9,7 @@ use crawler_facts::Metric;
 use crate::plan::{MapFigures, Plan};
 use crate::point::Point;
 use crate::record::Record;
-use crate::table::{conv_error, point_error};
+use crate::table::{conv_estimate, point_error};
 
 /// The metrics a map shows (those of them the plan keeps).
 pub const MAP_METRICS: [Metric; 4] = [
@@ -236,11 +236,17 @@ impl Maps {
             let cell = iy * nx + ix;
             let Some(plant) = &r.plant else { continue };
             stuck[panel][cell] = plant.run.metrics.get(Metric::StuckFraction);
-            // the largest estimate among the metrics that have one (a body at rest has no mileage)
-            convergence[panel][cell] = metrics
+            // the largest estimate among the metrics that have one (a body at rest has no
+            // mileage); none where any metric's estimate is untrusted (table::Untrusted)
+            let estimates: Vec<_> = metrics
                 .iter()
-                .filter_map(|&m| conv_error(plant, m, p))
-                .reduce(f64::max);
+                .filter_map(|&m| conv_estimate(plant, m, p))
+                .collect();
+            convergence[panel][cell] = if estimates.iter().any(|e| e.is_err()) {
+                None
+            } else {
+                estimates.into_iter().flatten().reduce(f64::max)
+            };
             for (mi, model) in models.iter().enumerate() {
                 let Some(mr) = r.models.get(mi) else { continue };
                 valid.get_mut(model).expect("a model")[panel][cell] =

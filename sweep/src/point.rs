@@ -210,6 +210,22 @@ pub fn resolve(plan: &Plan) -> Result<Vec<Point>, PointError> {
     Ok(points)
 }
 
+/// The distinct caveats of the points' scenarios ([`Scenario::caveats`]: settings known to bias
+/// the results), each with the number of points it applies to, in order of first appearance.
+pub fn caveats(points: &[Point]) -> Vec<(String, usize)> {
+    let mut out: Vec<(String, usize)> = Vec::new();
+    for p in points {
+        for c in p.scenario.caveats() {
+            let text = c.to_string();
+            match out.iter_mut().find(|(t, _)| *t == text) {
+                Some((_, n)) => *n += 1,
+                None => out.push((text, 1)),
+            }
+        }
+    }
+    out
+}
+
 /// Rough cost of a plant run of `s`, in cell updates (cells x internal steps), for scheduling
 /// the longest points first and for the progress bar.
 pub fn plant_cost(s: &Scenario) -> f64 {

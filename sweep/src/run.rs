@@ -189,6 +189,9 @@ impl Sweep {
             n - todo.len(),
             todo.len()
         );
+        for (caveat, count) in crate::point::caveats(&self.points) {
+            eprintln!("crawler-sweep: warning: {count} of {n} points: {caveat}");
+        }
         let started = Instant::now();
         let mut evaluated = 0;
         let mut failed_now = 0;

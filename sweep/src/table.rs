@@ -86,35 +86,80 @@ fn scales(point: &Point) -> (f64, f64) {
     (v, w.f0 * v * waves)
 }
 
-/// The floor of relative errors ([`model_error`], [`conv_error`]) for `metric` at `point`: 1e-6
-/// of the point's speed scale for the speed, of its power scale for the power and of their ratio
-/// for the mileage. Values below it are zero up to round-off or solver tolerance (without dry
-/// friction V = 0; a body at rest has V = 0 and P = 0); none for the other metrics.
+/// The share of a point's scale below which a value counts as zero ([`error_floor`]; the column
+/// docs quote it).
+pub const FLOOR_SHARE: f64 = 1e-6;
+
+/// Relative agreement of the N and 2N runs below which the difference is round-off, not an
+/// estimate ([`conv_error`]).
+pub const QUANTISED_AGREEMENT: f64 = 1e-9;
+
+/// The floor of relative errors ([`model_error`], [`conv_error`]) for `metric` at `point`:
+/// [`FLOOR_SHARE`] of the point's speed scale for the speed, of its power scale for the power and
+/// of their ratio for the mileage. Values below it are zero up to round-off or solver tolerance
+/// (without dry friction V = 0; a body at rest has V = 0 and P = 0); none for the other metrics.
 pub fn error_floor(metric: Metric, point: &Point) -> f64 {
     let (v, p) = scales(point);
     match metric {
-        Metric::Velocity => 1e-6 * v,
-        Metric::Power => 1e-6 * p,
-        Metric::Mileage if p > 0.0 => 1e-6 * v / p,
+        Metric::Velocity => FLOOR_SHARE * v,
+        Metric::Power => FLOOR_SHARE * p,
+        Metric::Mileage if p > 0.0 => FLOOR_SHARE * v / p,
         _ => 0.0,
     }
+}
+
+/// Why a convergence estimate is withheld ([`conv_estimate`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Untrusted {
+    /// The N and 2N runs agree to round-off ([`QUANTISED_AGREEMENT`]) on a value above the floor:
+    /// where the wave moves exactly one cell per step (Courant number `1 / alpha` above
+    /// `alpha = 1.1`, and Courant 1 at `alpha = 1`) the speed comes in steps of
+    /// `eps c_d / (c_v 2N)`, so both runs can land on the same step while each is off by far more
+    /// (alpha 1.7, eps 0.05, f0 0.15 N, k 4 pi, 256 cells: 1e-13 against 1.5e-3).
+    Quantised,
+    /// A stick statistic at a Courant number known to bias it ([`Scenario::caveats`]): both runs
+    /// share the bias, so their difference does not show it.
+    ///
+    /// [`Scenario::caveats`]: crawler_physics::scenario::Scenario::caveats
+    BiasedCourant,
+}
+
+/// The estimated discretisation error of the reported plant value of metric `name` at `point`
+/// ([`conv_estimate`]), `None` where it is withheld as untrusted or there is nothing to compare.
+pub fn conv_error(result: &PlantResult, name: Metric, point: &Point) -> Option<f64> {
+    conv_estimate(result, name, point)?.ok()
 }
 
 /// The estimated discretisation error of the reported plant value of metric `name` at `point`:
 /// `|fine - coarse| / max(|fine|, floor)` ([`error_floor`]); for shares (the stuck fraction, the
 /// friction selection, episodes) the absolute difference. It bounds the finer run's error when
 /// the scheme converges at first order or better (at second order it is three times that error,
-/// tested). `None` without a coarse run or a value.
-pub fn conv_error(result: &PlantResult, name: Metric, point: &Point) -> Option<f64> {
+/// tested). `None` without a coarse run or a value; `Some(Err(why))` where the difference is
+/// known not to estimate the error ([`Untrusted`]).
+pub fn conv_estimate(
+    result: &PlantResult,
+    name: Metric,
+    point: &Point,
+) -> Option<Result<f64, Untrusted>> {
     let coarse = result.coarse.as_ref()?;
     let f = comparable(name, &result.run.metrics, point)?;
     let c = comparable(name, &coarse.metrics, point)?;
     let d = (f - c).abs();
-    if name.info().share || d == 0.0 {
-        return Some(d);
+    if name.info().share {
+        if !point.scenario.caveats().is_empty() {
+            return Some(Err(Untrusted::BiasedCourant));
+        }
+        return Some(Ok(d));
     }
-    let den = f.abs().max(error_floor(name, point));
-    (den > 0.0).then(|| d / den).and_then(finite)
+    let floor = error_floor(name, point);
+    if f.abs() > floor && d <= QUANTISED_AGREEMENT * f.abs() {
+        return Some(Err(Untrusted::Quantised));
+    }
+    if d == 0.0 {
+        return Some(Ok(d));
+    }
+    let den = f.abs().max(floor);
+    (den > 0.0).then(|| d / den).and_then(finite).map(Ok)
 }
 
 /// The value of `metric` in `m` that a model is compared on: the mileage `|V| / P` only where
@@ -349,9 +394,9 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                     format!(
                         "estimated discretisation error of plant.{m}: |value(2N) - value(N)|{}",
                         if m.info().share {
-                            ""
+                            "; null where numerics.courant is known to bias the stick statistics (the two runs share the bias)".to_string()
                         } else {
-                            " / max(|value(2N)|, 1e-6 of the point's scale)"
+                            format!(" / max(|value(2N)|, {FLOOR_SHARE:e} of the point's scale); null where the two agree to {QUANTISED_AGREEMENT:e} (where the wave moves one cell per step the speed is quantised, so N and 2N can agree exactly while both are off)")
                         }
                     ),
                     &|p, r| r.plant.as_ref().and_then(|pr| conv_error(pr, m, p)),
@@ -400,7 +445,7 @@ pub fn batch(plan: &Plan, points: &[Point], records: &[Record]) -> anyhow::Resul
                         format!("{model}.{m} - plant.{m}")
                     } else {
                         format!(
-                            "{model}.{m} / plant.{m} - 1 (the denominator at least 1e-6 of the point's scale; null where undefined)"
+                            "{model}.{m} / plant.{m} - 1 (the denominator at least {FLOOR_SHARE:e} of the point's scale; null where undefined)"
                         )
                     },
                     &|p, r| {
