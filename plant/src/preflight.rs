@@ -35,6 +35,7 @@ pub fn notes(scenario: &Scenario) -> Vec<String> {
             duration(seconds)
         ));
     }
+    notes.extend(scenario.caveats().iter().map(|c| format!("warning: {c}")));
     notes
 }
 
