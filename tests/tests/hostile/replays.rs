@@ -119,7 +119,7 @@ fn recorded_once(bridge_stderr: &str, honest: &Honest) {
 fn replays_of_a_runs_own_messages_are_refused_and_counted() {
     let run = Run::new("replay");
     let rrd = run.path("replay.rrd");
-    let plant = run.plant(&plant_args("4"));
+    let plant = run.plant(&plant_args("6"));
     let bridge = run.bridge(&rrd, super::RECORDER);
     bridge.wait_for_stderr("plant found", Duration::from_secs(30));
     let (spy, plant_id) = run.participant(
@@ -151,7 +151,7 @@ fn replays_of_a_runs_own_messages_are_refused_and_counted() {
         Some((honest.clone(), nonce, plant_id)),
         Some(tx),
     );
-    let controller = run.controller(&controller_args("4"));
+    let controller = run.controller(&controller_args("6"));
     // once the run is under way, its first messages once more, long after they were taken
     let deadline = std::time::Instant::now() + Duration::from_secs(60);
     while kept.lock().unwrap().len() < 1000 && std::time::Instant::now() < deadline {
@@ -172,7 +172,7 @@ fn replays_of_a_runs_own_messages_are_refused_and_counted() {
     assert!(replayed > 1000, "only {replayed} replays were sent");
     assert_eq!(
         json(&p.stdout)["state_digest"].as_str().unwrap(),
-        in_process_digest("reflex", 128, 4.0),
+        in_process_digest("reflex", 128, 6.0),
         "replays changed the stateful controller's run"
     );
     assert!(rejected(&p.stderr, "replayed") > 0, "{}", p.stderr);
@@ -206,7 +206,7 @@ fn replays_from_an_earlier_run_with_a_kept_credential_are_refused() {
     };
 
     // the first run, recorded by the spy
-    let pa = with_cred(plant_args("3"));
+    let pa = with_cred(plant_args("6"));
     let plant = first.plant(&strs(&pa));
     let bridge = first.bridge(
         &first.path("first.rrd"),
@@ -225,7 +225,7 @@ fn replays_from_an_earlier_run_with_a_kept_credential_are_refused() {
     let keys = RunKeys::new(&first.id).unwrap();
     let kept: Shared<Vec<Captured>> = Arc::default();
     let subs = capture(spy.session(), &keys, (kept.clone(), 50_000), None, None);
-    let controller = first.controller(&strs(&with_cred(controller_args("3"))));
+    let controller = first.controller(&strs(&with_cred(controller_args("6"))));
     let p = plant.wait(Duration::from_secs(300));
     assert!(p.status.success(), "first plant: {}", p.stderr);
     assert!(controller.wait(Duration::from_secs(60)).status.success());
@@ -276,7 +276,7 @@ fn replays_from_an_earlier_run_with_a_kept_credential_are_refused() {
             n
         })
     };
-    let controller = second.controller(&strs(&with_cred(controller_args("3"))));
+    let controller = second.controller(&strs(&with_cred(controller_args("6"))));
     let p = plant.wait(Duration::from_secs(300));
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     let c = controller.wait(Duration::from_secs(60));
@@ -289,7 +289,7 @@ fn replays_from_an_earlier_run_with_a_kept_credential_are_refused() {
     assert!(replayed > 1000, "only {replayed} replays were sent");
     assert_eq!(
         json(&p.stdout)["state_digest"].as_str().unwrap(),
-        in_process_digest("reflex", 128, 3.0),
+        in_process_digest("reflex", 128, 6.0),
         "the first run's messages changed the second run"
     );
     assert!(rejected(&p.stderr, "other_run") > 0, "{}", p.stderr);
