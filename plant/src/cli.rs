@@ -27,7 +27,7 @@ enum Command {
     /// Time the stepping loop: cell updates per second, single thread (prints JSON).
     Bench(BenchArgs),
     /// Run as the co-simulation plant over zenoh: owns the clock, steps in lockstep with a controller.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
 }
 
 #[derive(Args)]
@@ -132,7 +132,7 @@ where
 
 fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     if let Command::Run(a) = cli.command {
-        return cosim(a);
+        return cosim(*a);
     }
     run(cli).map(|()| Exit::Finished.into())
 }

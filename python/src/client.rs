@@ -84,6 +84,8 @@ fn control(
         scenario,
         network,
         wait_timeout: Duration::from_secs_f64(wait_timeout),
+        take_over: None,
+        stall: None,
     };
     let (tx, rx) = crossbeam_channel::unbounded::<Interrupt>();
     let object = policy.clone().unbind();
@@ -123,7 +125,11 @@ fn control(
         return Err(e);
     }
     match outcome.map_err(|e| any_error(py, e))? {
-        ClientOutcome::Finished(summary) => crate::to_json(py, &summary),
+        // another controller took the run over: this one's part ended cleanly (the summary says
+        // at which step and to whom)
+        ClientOutcome::Finished(summary) | ClientOutcome::HandedOver(summary) => {
+            crate::to_json(py, &summary)
+        }
         ClientOutcome::Ended { reason, exit } => {
             let err = run_error(py, format!("the run ended: {reason}"));
             let _ = err.value(py).setattr("exit_code", exit.code());

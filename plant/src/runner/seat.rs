@@ -340,7 +340,7 @@ mod tests {
         seat.hear(d.clone(), Some(9000), 5);
         assert!(!seat.left(&b.id), "not the controller");
         assert!(
-            seat.left(&d.id) == false && seat.due(9000).is_none(),
+            !seat.left(&d.id) && seat.due(9000).is_none(),
             "its request is gone"
         );
         assert!(seat.left(&a.id));
