@@ -30,6 +30,8 @@ pub fn wire_report(r: &Report) -> Result<FinalReport, ProtocolError> {
             sigma_max: t.sigma_max,
             max_stress: t.max_stress,
             time_over_sigma_max: t.time_over_sigma_max,
+            stress_tolerance: t.stress_tolerance,
+            stress_exceeded_at: t.stress_exceeded_at,
             run_time: t.run_time,
         });
         // Every metric as it is (a value that is not finite is refused by name below), but the

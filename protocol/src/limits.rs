@@ -224,6 +224,8 @@ mod tests {
                 sigma_max: big,
                 max_stress: big,
                 time_over_sigma_max: big,
+                stress_tolerance: big,
+                stress_exceeded_at: Some(big),
                 run_time: big,
             }),
         };

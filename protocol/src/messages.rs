@@ -681,6 +681,13 @@ pub struct TaskResult {
     pub max_stress: f64,
     /// Time during which the stress exceeded sigma_max, s (>= 0).
     pub time_over_sigma_max: f64,
+    /// Time above sigma_max the task tolerates before it fails, s (>= 0). Absent: 0.
+    #[serde(default)]
+    pub stress_tolerance: f64,
+    /// When the time above sigma_max first exceeded the tolerance, s from the task's start
+    /// (>= 0); only when the outcome is "stress exceeded".
+    #[serde(default)]
+    pub stress_exceeded_at: Option<f64>,
     /// Length of the run, s (>= 0).
     pub run_time: f64,
 }
@@ -694,6 +701,10 @@ impl TaskResult {
         positive("report.task.sigma_max", self.sigma_max)?;
         non_negative("report.task.max_stress", self.max_stress)?;
         non_negative("report.task.time_over_sigma_max", self.time_over_sigma_max)?;
+        non_negative("report.task.stress_tolerance", self.stress_tolerance)?;
+        if let Some(t) = self.stress_exceeded_at {
+            non_negative("report.task.stress_exceeded_at", t)?;
+        }
         non_negative("report.task.run_time", self.run_time)?;
         if let Some(t) = self.time_to_distance {
             non_negative("report.task.time_to_distance", t)?;
@@ -1329,6 +1340,8 @@ mod tests {
                 sigma_max: 1e5,
                 max_stress: 4e4,
                 time_over_sigma_max: 0.0,
+                stress_tolerance: 0.0,
+                stress_exceeded_at: None,
                 run_time: 8.0,
             }),
         }

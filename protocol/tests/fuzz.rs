@@ -145,6 +145,8 @@ fn samples() -> Samples {
                 sigma_max: 1e5,
                 max_stress: 1000.0,
                 time_over_sigma_max: 0.0,
+                stress_tolerance: 0.0,
+                stress_exceeded_at: None,
                 run_time: 1.0,
             }),
         }),

@@ -192,6 +192,8 @@ fn status_finished() -> Status {
                 sigma_max: 100000.0,
                 max_stress: 36300.0,
                 time_over_sigma_max: 0.0,
+                stress_tolerance: 0.0,
+                stress_exceeded_at: None,
                 run_time: 0.01,
             }),
         }),
