@@ -427,7 +427,7 @@ fn a_controller_that_leaves_stops_the_run_and_resume_is_bit_identical() {
     };
     assert_eq!(exit, Exit::PeerLost);
     assert!(
-        reason.contains("controller c1 left the run at step 2500"),
+        reason.contains(&format!("controller {} left the run at step 2500", pid(C1))),
         "{reason}"
     );
     let last = statuses.last().unwrap();

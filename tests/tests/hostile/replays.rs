@@ -89,7 +89,7 @@ fn capture(
 /// never more than an honest listener counted, and all of it when the recorder dropped
 /// nothing (it drops only when it falls behind, and says so).
 fn recorded_once(bridge_stderr: &str, honest: &Honest) {
-    let episodes = bridge_count(bridge_stderr, " episodes");
+    let episodes = bridge_count(bridge_stderr, " stick episodes");
     let blocks = bridge_count(bridge_stderr, " metric blocks");
     assert!(
         honest.episodes > 100 && honest.blocks > 5,
