@@ -642,29 +642,35 @@ fn a_recorder_whose_plant_dies_closes_the_recording() {
 fn a_controller_that_changes_its_wave_every_step_has_full_metric_panels() {
     let run = Run::new("everystep");
     let rrd = run.path("every.rrd");
-    // the example controller, its wave's amplitude made to change at every step
+    // a Python controller of the package's client, its wave's amplitude changed at every step
     let wrapper = run.path("changing_controller.py");
     std::fs::write(
         &wrapper,
-        format!(
-            r#"import runpy, sys, msgpack
-pack = msgpack.packb
-def packb(obj, *args, **kwargs):
-    if isinstance(obj, dict) and obj.get("wave"):
-        wave = dict(obj["wave"])
-        wave["f0"] = wave["f0"] * (1.0 + 0.2 * (obj["step"] % 5) / 5.0)
-        obj = dict(obj, wave=wave)
-    return pack(obj, *args, **kwargs)
-msgpack.packb = packb
-example = {example:?}
-sys.argv = [example] + sys.argv[1:]
-runpy.run_path(example, run_name="__main__")
+        r#"import argparse, math
+import softcrawler
+from softcrawler.client import add_arguments, from_arguments
+
+class Changing:
+    name = "changing"
+    def __init__(self, f0, alpha):
+        self.f0, self.alpha, self.n = f0, alpha, 0
+    def reset(self, context):
+        body = context["body"]
+        c = math.sqrt(body["area"] * body["youngs_modulus"] / body["density"])
+        self.k = 2.0 * math.pi / context["length"]
+        self.omega = self.alpha * (self.k * c)
+    def act(self, observation):
+        self.n += 1
+        f0 = self.f0 * (1.0 + 0.2 * (self.n % 5) / 5.0)
+        return softcrawler.Wave(f0=f0, k=self.k, omega=self.omega)
+
+ap = argparse.ArgumentParser()
+add_arguments(ap)
+ap.add_argument("--f0", type=float)
+ap.add_argument("--alpha", type=float)
+args = ap.parse_args()
+from_arguments(args).run(Changing(args.f0, args.alpha))
 "#,
-            example = repo_root()
-                .join("examples/python_controller.py")
-                .display()
-                .to_string()
-        ),
     )
     .unwrap();
     let plant = run.plant(&["--eps", "1", "--t-end", "6", "--json"]);
