@@ -79,7 +79,7 @@ class Parameters:
 class TaskReport:
     """How a run did against its task (SI)."""
 
-    outcome: str  #: "reached", "energy exhausted" or "time up"
+    outcome: str  #: "reached", "energy exhausted", "stress exceeded" or "time up"
     distance_target: float  #: D, m
     distance: float  #: distance the centre of mass travelled, m
     time_to_distance: float | None  #: s
@@ -90,6 +90,8 @@ class TaskReport:
     sigma_max: float  #: Pa
     max_stress: float  #: Pa
     time_over_sigma_max: float  #: s
+    stress_tolerance: float  #: time above sigma_max the task tolerates, s
+    stress_exceeded_at: float | None  #: when the tolerance was exceeded, s from the task's start
     run_time: float  #: s
 
 
