@@ -46,7 +46,7 @@ def co_simulate(plant_program, tmp_path, monkeypatch, policy, flags):
     endpoint = f"unixsock-stream/{tmp_path}/z.sock"
     env = dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path))
     plant = subprocess.Popen(
-        [plant_program, "run", "--run-id", run_id, "--endpoint", endpoint, "--json",
+        [plant_program, "run", "--run-id", run_id, "--endpoint", endpoint, "--json", "--episodes",
          "--checkpoint", str(tmp_path / "plant.ckpt"), "--wait-timeout", "60", *flags],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:

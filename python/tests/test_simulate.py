@@ -10,7 +10,7 @@ from conftest import ROOT, SMALL_FLAGS, run_json
 
 
 def cli(plant_program: str, flags: list[str]) -> dict:
-    return run_json([plant_program, "simulate", "--json", *flags])
+    return run_json([plant_program, "simulate", "--json", "--episodes", *flags])
 
 
 def test_simulate_equals_the_plant_programs_report_bit_for_bit(plant_program, small):
