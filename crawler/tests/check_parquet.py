@@ -13,7 +13,7 @@ path, rows = sys.argv[1], int(sys.argv[2])
 pf = pq.ParquetFile(path)
 t = pf.read()
 meta = {k.decode(): v.decode() for k, v in (pf.metadata.metadata or {}).items()}
-assert meta.get("crawler.sweep.format") == "1", meta.keys()
+assert meta.get("crawler.sweep.format") == "2", meta.keys()
 assert "crawler.sweep.code" in meta
 assert t.num_rows == rows, (t.num_rows, rows)
 d = t.to_pydict()

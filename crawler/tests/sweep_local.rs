@@ -336,9 +336,21 @@ fn a_policy_in_closed_loop_equals_the_plant_under_the_same_wave() {
     let plan = write_plan(
         dir.path(),
         "pol",
-        "[set]\nnumerics.cells = 64\nnumerics.settle = 1.0\nnumerics.t_end = 2.0\nfriction.eps = 1.0\nactuation.f0 = 0.2\n\
-         [[axes]]\nkey = \"actuation.alpha\"\nvalues = [0.5, 1.2]\n\
-         [evaluate]\nplant = true\nconvergence = false\npolicy = { name = \"wave\" }\n",
+        r#"
+[set]
+numerics.cells = 64
+numerics.settle = 1.0
+numerics.t_end = 2.0
+friction.eps = 1.0
+actuation.f0 = 0.2
+[[axes]]
+key = "actuation.alpha"
+values = [0.5, 1.2]
+[evaluate]
+plant = true
+convergence = false
+policy = { name = "wave" }
+"#,
     );
     let o = sweep(
         dir.path(),
@@ -371,6 +383,85 @@ fn a_policy_in_closed_loop_equals_the_plant_under_the_same_wave() {
         f64s(&t, "plant.stuck_fraction")[0].unwrap() > 0.05,
         "a sticking point"
     );
+}
+
+#[test]
+fn a_sweep_reports_each_runs_task_outcome_and_a_stress_limit_broken_is_not_a_success() {
+    let dir = tempfile::tempdir().unwrap();
+    // the same run twice but for the stress limit: far above the run's stress, then below it
+    let plan = write_plan(
+        dir.path(),
+        "task",
+        r#"
+[set]
+numerics.cells = 64
+numerics.settle = 1.0
+numerics.t_end = 2.0
+task.distance = 0.01
+task.energy = 100.0
+[[axes]]
+key = "task.sigma_max"
+values = [1e9, 1.0]
+[evaluate]
+plant = true
+convergence = false
+policy = { name = "wave" }
+"#,
+    );
+    let o = sweep(
+        dir.path(),
+        &[
+            plan.to_str().unwrap(),
+            "--store",
+            "store",
+            "--out",
+            "t.parquet",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let t = read_parquet(&dir.path().join("t.parquet"));
+    for who in ["plant", "policy"] {
+        let outcome = strs(&t, &format!("{who}.task.outcome"));
+        assert_eq!(outcome[0].as_deref(), Some("reached"), "{who}");
+        assert_eq!(outcome[1].as_deref(), Some("stress exceeded"), "{who}");
+        let reached = f64s(&t, &format!("{who}.task.time_to_distance"));
+        let exceeded = f64s(&t, &format!("{who}.task.stress_exceeded_at"));
+        let over = f64s(&t, &format!("{who}.task.time_over_sigma_max"));
+        let distance = f64s(&t, &format!("{who}.task.distance"));
+        // the limit does not change the run: the distance is reached at the same time in both
+        assert_eq!(reached[0], reached[1], "{who}");
+        assert!(distance[0].unwrap() >= 0.01, "{who}: {distance:?}");
+        assert_eq!(exceeded[0], None, "{who}");
+        assert_eq!(over[0], Some(0.0), "{who}");
+        // above 1 Pa from the first step that stresses the body: exceeded at once (no tolerance),
+        // before the distance was reached
+        assert!(
+            exceeded[1].unwrap() < reached[1].unwrap(),
+            "{who}: {exceeded:?}"
+        );
+        assert!(
+            over[1].unwrap() > 0.5 * reached[1].unwrap(),
+            "{who}: {over:?}"
+        );
+    }
+    // the wave policy's run is the plant's under the same wave: the same task, bit for bit
+    for c in [
+        "distance",
+        "time_to_distance",
+        "energy_used",
+        "max_stress",
+        "time_over_sigma_max",
+    ] {
+        let (a, b) = (
+            f64s(&t, &format!("plant.task.{c}")),
+            f64s(&t, &format!("policy.task.{c}")),
+        );
+        assert_eq!(
+            a.iter().map(|x| x.map(f64::to_bits)).collect::<Vec<_>>(),
+            b.iter().map(|x| x.map(f64::to_bits)).collect::<Vec<_>>(),
+            "{c}"
+        );
+    }
 }
 
 #[test]

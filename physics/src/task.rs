@@ -190,7 +190,7 @@ impl TaskTracker {
 }
 
 /// How a run did against its task (SI units).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TaskReport {
     /// "reached", "stress exceeded", "energy exhausted" or "time up".
     pub outcome: Outcome,

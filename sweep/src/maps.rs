@@ -155,47 +155,7 @@ impl Maps {
         points: &[Point],
         records: &[Record],
     ) -> anyhow::Result<Self> {
-        let axis = |key: &String| -> anyhow::Result<MapAxis> {
-            let a = plan
-                .axes
-                .iter()
-                .find(|a| a.keys.contains(key))
-                .ok_or_else(|| anyhow::anyhow!("figures: {key} is not an axis of the plan"))?;
-            let i = a.keys.iter().position(|k| k == key).expect("found");
-            Ok(MapAxis {
-                key: key.clone(),
-                values: a.values.iter().map(|row| row[i].clone()).collect(),
-            })
-        };
-        let x = axis(&fig.x)?;
-        let y = axis(&fig.y)?;
-        for a in [&x, &y] {
-            anyhow::ensure!(
-                a.numbers().iter().all(Option::is_some),
-                "figures: the values of {} must be numbers",
-                a.key
-            );
-        }
-        let rows = fig.rows.as_ref().map(axis).transpose()?;
-        let columns = fig.columns.as_ref().map(axis).transpose()?;
-        let used: Vec<&String> = [
-            Some(&fig.x),
-            Some(&fig.y),
-            fig.rows.as_ref(),
-            fig.columns.as_ref(),
-        ]
-        .into_iter()
-        .flatten()
-        .collect();
-        for a in &plan.axes {
-            if a.values.len() > 1 && !a.keys.iter().any(|k| used.contains(&k)) {
-                anyhow::bail!(
-                    "figures: the axis {:?} has {} values but is not one of x, y, rows, columns: a map needs one point per cell",
-                    a.keys,
-                    a.values.len()
-                );
-            }
-        }
+        let (x, y, rows, columns) = map_axes(plan, fig)?;
         let models = plan.evaluate.models.clone();
         let metrics: Vec<Metric> = MAP_METRICS
             .into_iter()
@@ -270,4 +230,54 @@ impl Maps {
             convergence,
         })
     }
+}
+
+/// The map's axes: x and y (with numeric values), rows and columns if the figure has them; every
+/// other axis of the plan must have one value (a map has one point per cell).
+fn map_axes(
+    plan: &Plan,
+    fig: &MapFigures,
+) -> anyhow::Result<(MapAxis, MapAxis, Option<MapAxis>, Option<MapAxis>)> {
+    let axis = |key: &String| -> anyhow::Result<MapAxis> {
+        let a = plan
+            .axes
+            .iter()
+            .find(|a| a.keys.contains(key))
+            .ok_or_else(|| anyhow::anyhow!("figures: {key} is not an axis of the plan"))?;
+        let i = a.keys.iter().position(|k| k == key).expect("found");
+        Ok(MapAxis {
+            key: key.clone(),
+            values: a.values.iter().map(|row| row[i].clone()).collect(),
+        })
+    };
+    let x = axis(&fig.x)?;
+    let y = axis(&fig.y)?;
+    for a in [&x, &y] {
+        anyhow::ensure!(
+            a.numbers().iter().all(Option::is_some),
+            "figures: the values of {} must be numbers",
+            a.key
+        );
+    }
+    let rows = fig.rows.as_ref().map(axis).transpose()?;
+    let columns = fig.columns.as_ref().map(axis).transpose()?;
+    let used: Vec<&String> = [
+        Some(&fig.x),
+        Some(&fig.y),
+        fig.rows.as_ref(),
+        fig.columns.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    for a in &plan.axes {
+        if a.values.len() > 1 && !a.keys.iter().any(|k| used.contains(&k)) {
+            anyhow::bail!(
+                "figures: the axis {:?} has {} values but is not one of x, y, rows, columns: a map needs one point per cell",
+                a.keys,
+                a.values.len()
+            );
+        }
+    }
+    Ok((x, y, rows, columns))
 }

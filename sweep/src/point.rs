@@ -11,7 +11,7 @@ use crate::plan::{Evaluate, Plan};
 
 /// Version of the result format; part of every id, so changing what a record holds never mixes
 /// old and new records.
-pub const FORMAT: u32 = 1;
+pub const FORMAT: u32 = 2;
 
 /// Fingerprint of the code that computes results (plant, models, policies, evaluation), made at
 /// build time from their sources; part of every id.

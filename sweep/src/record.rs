@@ -1,5 +1,6 @@
 //! What is kept of one evaluated point (serialised as one JSON object; floats round-trip exactly).
 
+use crawler_physics::task::TaskReport;
 use serde::{Deserialize, Serialize};
 
 /// Steady-state metrics of the plant, a model or a policy run (the metric table's, SI units).
@@ -29,6 +30,9 @@ pub struct PlantRun {
     pub momentum_residual: Option<f64>,
     /// CRC-32 of the final state (equal digests, identical trajectories).
     pub state_digest: String,
+    /// How the run did against the scenario's task (the plant's report).
+    #[serde(default)]
+    pub task: Option<TaskReport>,
 }
 
 /// The plant at a point: the reported run and, with a convergence check, the coarser one.

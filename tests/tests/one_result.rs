@@ -72,6 +72,10 @@ fn every_policy_gives_one_digest_and_one_report_in_process_in_a_sweep_and_cosimu
             "{policy}: the sweep's run differs from the in-process run"
         );
         assert_eq!(swept.run.metrics, local.report.values(), "{policy}");
+        assert_eq!(
+            swept.run.task, local.report.task,
+            "{policy}: the sweep's task"
+        );
         // co-simulated over zenoh
         let file = path.to_str().unwrap();
         let plant = run.plant(&["--scenario", file, "--json"]);

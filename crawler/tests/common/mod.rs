@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::Arc;
 
-use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch};
+use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, StringArray};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
 /// The repository's root.
@@ -81,6 +81,17 @@ pub fn f64s(b: &RecordBatch, name: &str) -> Vec<Option<f64>> {
     let a = c.as_any().downcast_ref::<Float64Array>().expect("Float64");
     (0..a.len())
         .map(|i| (!a.is_null(i)).then(|| a.value(i)))
+        .collect()
+}
+
+/// A Utf8 column by name.
+pub fn strs(b: &RecordBatch, name: &str) -> Vec<Option<String>> {
+    let c = b
+        .column_by_name(name)
+        .unwrap_or_else(|| panic!("no column {name}"));
+    let a = c.as_any().downcast_ref::<StringArray>().expect("Utf8");
+    (0..a.len())
+        .map(|i| (!a.is_null(i)).then(|| a.value(i).to_string()))
         .collect()
 }
 

@@ -29,6 +29,7 @@ pub fn plant_run(r: &Report) -> PlantRun {
         window_periods: r.window.periods,
         momentum_residual: finite(r.momentum_residual),
         state_digest: r.state_digest.clone(),
+        task: r.task.clone(),
     }
 }
 

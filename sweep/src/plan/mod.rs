@@ -7,10 +7,14 @@
 //! the points are resolved ([`crate::point`]). See `plans/validity.toml` for a complete plan.
 
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crawler_facts::Metric;
 use crawler_policies::Params;
+
+mod parse;
+
+use parse::{axis, base_scenario, check_figures, chosen_metrics, evaluation, Bad};
 
 /// Why a plan could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -236,148 +240,30 @@ impl Plan {
             origin: origin.to_string(),
             message: e.to_string(),
         })?;
-        let bad = |field: &str, value: &dyn std::fmt::Display, allowed: &str| PlanError::Invalid {
-            origin: origin.to_string(),
-            field: field.to_string(),
-            value: value.to_string(),
-            allowed: allowed.to_string(),
-        };
+        let bad = Bad { origin };
         if raw.name.is_empty()
             || !raw
                 .name
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
         {
-            return Err(bad(
+            return Err(bad.field(
                 "name",
                 &format!("{:?}", raw.name),
                 "a non-empty name of ASCII letters, digits, '-' and '_' (it names the output files)",
             ));
         }
-        let (base_toml, base_origin) = match &raw.scenario {
-            Some(p) => {
-                let path: PathBuf = dir.join(p);
-                let text = read_text(&path).map_err(|cause| {
-                    bad(
-                        "scenario",
-                        &format!("{p:?}"),
-                        &format!(
-                            "a readable scenario file (relative to the plan's folder); reading {} failed: {cause}",
-                            path.display()
-                        ),
-                    )
-                })?;
-                (text, path.display().to_string())
-            }
-            None => (
-                crawler_physics::scenario::PAPER_TOML.to_string(),
-                "<embedded paper.toml>".to_string(),
-            ),
-        };
+        let (base_toml, base_origin) = base_scenario(raw.scenario.as_deref(), dir, &bad)?;
         let mut set = Vec::new();
         flatten("", &raw.set, &mut set);
         for (k, _) in &set {
-            check_key(k).map_err(|why| bad(&format!("set.{k:?}"), k, &why))?;
+            check_key(k).map_err(|why| bad.field(&format!("set.{k:?}"), k, &why))?;
         }
 
         let mut axes = Vec::new();
         let mut seen: Vec<String> = set.iter().map(|(k, _)| k.clone()).collect();
         for (i, a) in raw.axes.iter().enumerate() {
-            let field = format!("axes[{i}]");
-            let keys = match (&a.key, &a.keys) {
-                (Some(k), None) => vec![k.clone()],
-                (None, Some(ks)) if !ks.is_empty() => ks.clone(),
-                _ => return Err(bad(
-                    &field,
-                    &"key/keys",
-                    "exactly one of key = \"section.field\" or keys = [\"...\", ...] (non-empty)",
-                )),
-            };
-            for k in &keys {
-                check_key(k).map_err(|why| bad(&format!("{field}.key"), k, &why))?;
-                if seen.contains(k) {
-                    return Err(bad(
-                        &format!("{field}.key"),
-                        k,
-                        "a key that no other axis and no [set] entry gives",
-                    ));
-                }
-                seen.push(k.clone());
-            }
-            let given = [
-                a.values.is_some(),
-                a.linspace.is_some(),
-                a.logspace.is_some(),
-            ];
-            if given.iter().filter(|g| **g).count() != 1 {
-                return Err(bad(
-                    &field,
-                    &"values/linspace/logspace",
-                    "exactly one of values = [...], linspace = { start, stop, num }, logspace = { start, stop, num }",
-                ));
-            }
-            let values: Vec<Vec<toml::Value>> = if let Some(v) = &a.values {
-                if v.is_empty() {
-                    return Err(bad(&format!("{field}.values"), &"[]", "at least one value"));
-                }
-                if keys.len() == 1 {
-                    v.iter().map(|x| vec![x.clone()]).collect()
-                } else {
-                    let mut out = Vec::new();
-                    for (j, x) in v.iter().enumerate() {
-                        match x {
-                            toml::Value::Array(t) if t.len() == keys.len() => out.push(t.clone()),
-                            _ => {
-                                return Err(bad(
-                                    &format!("{field}.values[{j}]"),
-                                    x,
-                                    &format!(
-                                        "an array of {} values, one for each of keys = {keys:?}",
-                                        keys.len()
-                                    ),
-                                ))
-                            }
-                        }
-                    }
-                    out
-                }
-            } else {
-                if keys.len() != 1 {
-                    return Err(bad(
-                        &field,
-                        &"linspace/logspace with several keys",
-                        "values = [[...], ...] for zipped keys",
-                    ));
-                }
-                let (r, log, what) = match (&a.linspace, &a.logspace) {
-                    (Some(r), _) => (*r, false, "linspace"),
-                    (_, Some(r)) => (*r, true, "logspace"),
-                    _ => unreachable!("one of them is given"),
-                };
-                let f = format!("{field}.{what}");
-                spaced(r, log)
-                    .map_err(|(sub, v, why)| bad(&format!("{f}.{sub}"), &v, &why))?
-                    .into_iter()
-                    .map(|x| vec![toml::Value::Float(x)])
-                    .collect()
-            };
-            for (j, row) in values.iter().enumerate() {
-                for (k, v) in keys.iter().zip(row) {
-                    if matches!(
-                        v,
-                        toml::Value::Array(_) | toml::Value::Table(_) | toml::Value::Datetime(_)
-                    ) {
-                        return Err(bad(
-                            &format!("{field}.values[{j}]"),
-                            v,
-                            &format!("a number, string or boolean for {k}"),
-                        ));
-                    }
-                }
-            }
-            column_type(&keys, &values)
-                .map_err(|(k, why)| bad(&format!("{field} ({k})"), &"values", &why))?;
-            axes.push(Axis { keys, values });
+            axes.push(axis(&format!("axes[{i}]"), a, &mut seen, &bad)?);
         }
         let count = axes
             .iter()
@@ -385,124 +271,18 @@ impl Plan {
         match count {
             Some(n) if n <= MAX_POINTS => {}
             _ => {
-                return Err(bad(
+                return Err(bad.field(
                     "axes",
                     &"the product of the axes' lengths",
                     &format!("at most {MAX_POINTS} points"),
                 ))
             }
         }
-
-        let e = &raw.evaluate;
-        let mut models = Vec::new();
-        for m in MODELS {
-            if e.models.iter().any(|x| x == m) {
-                models.push(m.to_string());
-            }
-        }
-        for m in &e.models {
-            if !MODELS.contains(&m.as_str()) {
-                return Err(bad("evaluate.models", m, &format!("a list of {MODELS:?}")));
-            }
-        }
-        if models.len() != e.models.len() {
-            return Err(bad(
-                "evaluate.models",
-                &format!("{:?}", e.models),
-                "each model at most once",
-            ));
-        }
-        let policy = match &e.policy {
-            None => None,
-            Some(p) => {
-                let mut params = Vec::new();
-                for (k, v) in &p.params {
-                    let value = param_value(k, v).map_err(|allowed| {
-                        bad(&format!("evaluate.policy.params.{k}"), v, &allowed)
-                    })?;
-                    params.push(format!("{k}={value}"));
-                }
-                let parsed = Params::parse(&params).map_err(|e| {
-                    bad(
-                        "evaluate.policy.params",
-                        &format!("{params:?}"),
-                        &e.to_string(),
-                    )
-                })?;
-                crawler_policies::lookup(&p.name)
-                    .map_err(|e| bad("evaluate.policy.name", &p.name, &e.to_string()))?;
-                crawler_policies::check(&p.name, &parsed).map_err(|e| {
-                    bad(
-                        "evaluate.policy.params",
-                        &format!("{params:?}"),
-                        &e.to_string(),
-                    )
-                })?;
-                Some(PolicySpec {
-                    name: p.name.clone(),
-                    params,
-                })
-            }
-        };
-        if !e.plant && models.is_empty() && policy.is_none() {
-            return Err(bad(
-                "evaluate",
-                &"nothing",
-                "plant = true, models = [...] and/or policy = { name = ... }",
-            ));
-        }
-        let evaluate = Evaluate {
-            plant: e.plant,
-            convergence: e.plant && e.convergence,
-            models,
-            policy,
-        };
-
-        let metrics: Vec<Metric> = match &raw.metrics {
-            None => Metric::ALL.to_vec(),
-            Some(list) => {
-                let mut chosen = Vec::new();
-                for m in list {
-                    let all = Metric::ALL.map(Metric::name).join(", ");
-                    chosen.push(
-                        Metric::parse(m)
-                            .ok_or_else(|| bad("metrics", m, &format!("a list of {all}")))?,
-                    );
-                }
-                // file order does not matter: the columns follow the metric table
-                Metric::ALL
-                    .into_iter()
-                    .filter(|m| chosen.contains(m))
-                    .collect()
-            }
-        };
-        if metrics.is_empty() {
-            return Err(bad("metrics", &"[]", "at least one metric"));
-        }
-
+        let evaluate = evaluation(&raw.evaluate, &bad)?;
+        let metrics = chosen_metrics(raw.metrics.as_deref(), &bad)?;
         if let Some(f) = &raw.figures {
-            let axis_keys: Vec<&String> = axes.iter().flat_map(|a| a.keys.iter()).collect();
-            for (field, k) in [
-                ("figures.x", Some(&f.x)),
-                ("figures.y", Some(&f.y)),
-                ("figures.rows", f.rows.as_ref()),
-                ("figures.columns", f.columns.as_ref()),
-            ] {
-                if let Some(k) = k {
-                    if !axis_keys.contains(&k) {
-                        return Err(bad(field, k, "the key of one of the plan's axes"));
-                    }
-                }
-            }
-            if !evaluate.plant || evaluate.models.is_empty() {
-                return Err(bad(
-                    "figures",
-                    &"a map",
-                    "maps compare models with the plant: evaluate.plant = true and at least one model",
-                ));
-            }
+            check_figures(f, &axes, &evaluate, &bad)?;
         }
-
         Ok(Plan {
             name: raw.name,
             description: raw.description,
@@ -515,6 +295,15 @@ impl Plan {
             metrics,
             figures: raw.figures,
         })
+    }
+
+    /// True when the plan states a task: its base scenario has a `[task]` table, or a setting or
+    /// an axis gives a `task.` key. Its results then carry each run's outcome against the task.
+    pub fn states_task(&self) -> bool {
+        let is_task = |k: &str| k == "task" || k.starts_with("task.");
+        self.set.iter().any(|(k, _)| is_task(k))
+            || self.axes.iter().any(|a| a.keys.iter().any(|k| is_task(k)))
+            || toml::from_str::<toml::Table>(&self.base_toml).is_ok_and(|t| t.contains_key("task"))
     }
 
     /// Number of points (the product of the axes' lengths; 1 without axes).
