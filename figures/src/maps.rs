@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 
@@ -231,6 +232,8 @@ fn axis_label(key: &str) -> String {
     }
 }
 
+/// Draws figure `f` of `maps` into the PNG file `path`: the title and notes, a panel per
+/// (row, column) value and the colour bar.
 fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
     let (nr, nc) = (maps.nrows(), maps.ncols());
     // sized so that the docs' width (about 900 px for three panels) keeps every label legible
@@ -256,99 +259,146 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
     }
     let (grid_area, bar_area) = body.split_horizontally(nc as u32 * pw);
     let panels = grid_area.split_evenly((nr, nc));
-    let xs: Vec<f64> = maps
-        .x
-        .numbers()
-        .into_iter()
-        .map(|v| v.expect("numeric"))
-        .collect();
-    let ys: Vec<f64> = maps
-        .y
-        .numbers()
-        .into_iter()
-        .map(|v| v.expect("numeric"))
-        .collect();
-    let edges = |v: &[f64]| -> Vec<f64> {
-        // cell edges halfway between values, half a step beyond the ends
-        let n = v.len();
-        if n == 1 {
-            return vec![v[0] - 0.5, v[0] + 0.5];
-        }
-        let mut e = Vec::with_capacity(n + 1);
-        e.push(v[0] - 0.5 * (v[1] - v[0]));
-        for i in 0..n - 1 {
-            e.push(0.5 * (v[i] + v[i + 1]));
-        }
-        e.push(v[n - 1] + 0.5 * (v[n - 1] - v[n - 2]));
-        e
-    };
-    let (ex, ey) = (edges(&xs), edges(&ys));
+    let cells = Cells::of(maps);
     for (pi, area) in panels.iter().enumerate() {
-        let (ir, ic) = (pi / nc, pi % nc);
-        let caption = [
-            maps.rows.as_ref().map(|a| a.label(ir)),
-            maps.columns.as_ref().map(|a| a.label(ic)),
-        ]
-        .into_iter()
-        .flatten()
-        .collect::<Vec<_>>()
-        .join(", ");
-        let (x0, x1) = (ex[0].min(ex[ex.len() - 1]), ex[0].max(ex[ex.len() - 1]));
-        let (y0, y1) = (ey[0].min(ey[ey.len() - 1]), ey[0].max(ey[ey.len() - 1]));
-        let mut chart = ChartBuilder::on(area)
-            .caption(caption, ("sans-serif", 22))
-            .margin(8)
-            .x_label_area_size(52)
-            .y_label_area_size(62)
-            .build_cartesian_2d(x0..x1, y0..y1)?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc(axis_label(&maps.x.key))
-            .y_desc(axis_label(&maps.y.key))
-            .x_labels(6)
-            .y_labels(6)
-            .label_style(("sans-serif", 18))
-            .axis_desc_style(("sans-serif", 19))
-            .draw()?;
-        let grid = &f.panels[pi];
-        let nx = xs.len();
-        chart.draw_series((0..ys.len()).flat_map(|iy| {
-            let ex = &ex;
-            let ey = &ey;
-            (0..nx).map(move |ix| {
-                let c = match grid[iy * nx + ix] {
-                    Some(v) => color(f.scale, v),
-                    None => UNDEFINED,
-                };
-                Rectangle::new([(ex[ix], ey[iy]), (ex[ix + 1], ey[iy + 1])], c.filled())
-            })
-        }))?;
-        let switch = crawler_physics::scenario::SUPERSONIC_ALPHA;
-        if short_name(&maps.x.key) == "alpha" && x0 < switch && switch < x1 {
-            chart.draw_series(DashedLineSeries::new(
-                vec![(switch, y0), (switch, y1)],
-                8,
-                6,
-                SWITCH.stroke_width(2),
-            ))?;
-        }
-        if f.contours {
-            let logs: Vec<Option<f64>> = grid
-                .iter()
-                .map(|v| v.map(|x| x.abs().max(1e-300).log10()))
-                .collect();
-            for (level, col, _) in LEVELS {
-                for [a, b] in segments(&xs, &ys, &logs, level.log10()) {
-                    chart.draw_series(std::iter::once(PathElement::new(
-                        vec![a, b],
-                        col.stroke_width(2),
-                    )))?;
-                }
+        draw_panel(maps, f, &cells, pi, area)?;
+    }
+    draw_colour_bar(f, &bar_area)?;
+    root.present()
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// The cells of a map: the x and y values of their centres and their edges, half way between
+/// values and half a step beyond the ends (in the axes' units).
+struct Cells {
+    /// x of the cells' centres.
+    xs: Vec<f64>,
+    /// y of the cells' centres.
+    ys: Vec<f64>,
+    /// x of the cells' edges, one more than `xs`.
+    ex: Vec<f64>,
+    /// y of the cells' edges, one more than `ys`.
+    ey: Vec<f64>,
+}
+
+impl Cells {
+    /// The cells of `maps`' axes (numeric).
+    fn of(maps: &Maps) -> Self {
+        let xs: Vec<f64> = maps
+            .x
+            .numbers()
+            .into_iter()
+            .map(|v| v.expect("numeric"))
+            .collect();
+        let ys: Vec<f64> = maps
+            .y
+            .numbers()
+            .into_iter()
+            .map(|v| v.expect("numeric"))
+            .collect();
+        let (ex, ey) = (cell_edges(&xs), cell_edges(&ys));
+        Self { xs, ys, ex, ey }
+    }
+}
+
+/// Cell edges halfway between the values `v`, half a step beyond the ends (one value: a cell
+/// one unit wide).
+fn cell_edges(v: &[f64]) -> Vec<f64> {
+    let n = v.len();
+    if n == 1 {
+        return vec![v[0] - 0.5, v[0] + 0.5];
+    }
+    let mut e = Vec::with_capacity(n + 1);
+    e.push(v[0] - 0.5 * (v[1] - v[0]));
+    for i in 0..n - 1 {
+        e.push(0.5 * (v[i] + v[i + 1]));
+    }
+    e.push(v[n - 1] + 0.5 * (v[n - 1] - v[n - 2]));
+    e
+}
+
+/// Draws panel `pi` of figure `f` (row-major over the maps' rows and columns) into `area`: its
+/// cells, the Courant switch's line on an `alpha` axis, and the contours if the figure has them.
+fn draw_panel(
+    maps: &Maps,
+    f: &Figure,
+    cells: &Cells,
+    pi: usize,
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+) -> anyhow::Result<()> {
+    let nc = maps.ncols();
+    let Cells { xs, ys, ex, ey } = cells;
+    let (ir, ic) = (pi / nc, pi % nc);
+    let caption = [
+        maps.rows.as_ref().map(|a| a.label(ir)),
+        maps.columns.as_ref().map(|a| a.label(ic)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect::<Vec<_>>()
+    .join(", ");
+    let (x0, x1) = (ex[0].min(ex[ex.len() - 1]), ex[0].max(ex[ex.len() - 1]));
+    let (y0, y1) = (ey[0].min(ey[ey.len() - 1]), ey[0].max(ey[ey.len() - 1]));
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 22))
+        .margin(8)
+        .x_label_area_size(52)
+        .y_label_area_size(62)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(axis_label(&maps.x.key))
+        .y_desc(axis_label(&maps.y.key))
+        .x_labels(6)
+        .y_labels(6)
+        .label_style(("sans-serif", 18))
+        .axis_desc_style(("sans-serif", 19))
+        .draw()?;
+    let grid = &f.panels[pi];
+    let nx = xs.len();
+    chart.draw_series((0..ys.len()).flat_map(|iy| {
+        (0..nx).map(move |ix| {
+            let c = match grid[iy * nx + ix] {
+                Some(v) => color(f.scale, v),
+                None => UNDEFINED,
+            };
+            Rectangle::new([(ex[ix], ey[iy]), (ex[ix + 1], ey[iy + 1])], c.filled())
+        })
+    }))?;
+    let switch = crawler_physics::scenario::SUPERSONIC_ALPHA;
+    if short_name(&maps.x.key) == "alpha" && x0 < switch && switch < x1 {
+        chart.draw_series(DashedLineSeries::new(
+            vec![(switch, y0), (switch, y1)],
+            8,
+            6,
+            SWITCH.stroke_width(2),
+        ))?;
+    }
+    if f.contours {
+        let logs: Vec<Option<f64>> = grid
+            .iter()
+            .map(|v| v.map(|x| x.abs().max(1e-300).log10()))
+            .collect();
+        for (level, col, _) in LEVELS {
+            for [a, b] in segments(xs, ys, &logs, level.log10()) {
+                chart.draw_series(std::iter::once(PathElement::new(
+                    vec![a, b],
+                    col.stroke_width(2),
+                )))?;
             }
         }
     }
-    // colour bar, with a swatch for every category the panels can show
+    Ok(())
+}
+
+/// Draws the colour bar of figure `f` into `bar_area`, with its ticks, its label and a swatch
+/// for every category the panels can show.
+fn draw_colour_bar(
+    f: &Figure,
+    bar_area: &DrawingArea<BitMapBackend<'_>, Shift>,
+) -> anyhow::Result<()> {
     let bar = bar_area.margin(80, 150, 16, 80);
     let (bw, bh) = bar.dim_in_pixel();
     let steps = 200;
@@ -402,8 +452,6 @@ fn draw_figure(maps: &Maps, f: &Figure, path: &Path) -> anyhow::Result<()> {
         }
         y += 8;
     }
-    root.present()
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
     Ok(())
 }
 

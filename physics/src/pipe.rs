@@ -103,6 +103,72 @@ impl Feature {
             | Feature::Texture { from, to, .. } => (from, to),
         }
     }
+
+    /// Checks the values of a feature on `[from, to)` (m, a valid range): a patch's or a ramp's
+    /// `eps` and `n_f` (at least one given), a texture's deviations and correlation length (m,
+    /// at most [`MAX_PIECES`] samples). `name` gives a field's full name in errors.
+    fn validate_values(
+        &self,
+        from: f64,
+        to: f64,
+        name: &impl Fn(&str) -> String,
+    ) -> Result<(), ParamError> {
+        match *self {
+            Feature::Patch { eps, n_f, .. } => {
+                if let Some(e) = eps {
+                    non_negative(&name("eps"), e)?;
+                }
+                if let Some(n) = n_f {
+                    within(&name("n_f"), n, 0.0, 1.0)?;
+                }
+                if eps.is_none() && n_f.is_none() {
+                    return Err(ParamError::new(
+                        name("eps"),
+                        "missing",
+                        "eps and/or n_f for a patch",
+                    ));
+                }
+            }
+            Feature::Ramp { eps, n_f, .. } => {
+                if let Some([a, b]) = eps {
+                    non_negative(&name("eps[0]"), a)?;
+                    non_negative(&name("eps[1]"), b)?;
+                }
+                if let Some([a, b]) = n_f {
+                    within(&name("n_f[0]"), a, 0.0, 1.0)?;
+                    within(&name("n_f[1]"), b, 0.0, 1.0)?;
+                }
+                if eps.is_none() && n_f.is_none() {
+                    return Err(ParamError::new(
+                        name("eps"),
+                        "missing",
+                        "eps = [from, to] and/or n_f = [from, to] for a ramp",
+                    ));
+                }
+            }
+            Feature::Texture {
+                eps_std,
+                n_f_std,
+                correlation,
+                ..
+            } => {
+                non_negative(&name("eps_std"), eps_std)?;
+                non_negative(&name("n_f_std"), n_f_std)?;
+                positive(&name("correlation"), correlation)?;
+                let samples = (to - from) / (correlation / 8.0);
+                if samples > MAX_PIECES as f64 {
+                    return Err(ParamError::new(
+                        name("correlation"),
+                        correlation,
+                        format!(
+                            "at least (to - from) * 8 / {MAX_PIECES} m (the texture is sampled every correlation / 8)"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The pipe: where the body starts, what controllers are told, and how friction varies.
@@ -154,6 +220,27 @@ impl Pipe {
 
     /// Validates every field; `base_eps`/`base_n_f` are the uniform values the features modify.
     pub fn validate(&self) -> Result<(), ParamError> {
+        self.validate_settings()?;
+        // pieces and texture samples of all features together (each also bounded on its own
+        // below), so that a map's memory and the time to build it stay bounded
+        let (mut pieces, mut samples) = (0.0, 0.0);
+        for (i, f) in self.features.iter().enumerate() {
+            self.validate_feature(i, f)?;
+            let (from, to) = f.range();
+            pieces += match f {
+                Feature::Patch { .. } => 1.0,
+                _ => ((to - from) / self.resolution).ceil(),
+            };
+            if let Feature::Texture { correlation, .. } = *f {
+                samples += ((to - from) / (correlation / 8.0)).ceil() + 1.0;
+            }
+        }
+        self.validate_totals(pieces, samples)
+    }
+
+    /// Checks the fields other than the features themselves: the start (m), the resolution
+    /// (m), the nominal values and the number of features.
+    fn validate_settings(&self) -> Result<(), ParamError> {
         finite("pipe.start", self.start)?;
         positive("pipe.resolution", self.resolution)?;
         match (self.disclose, &self.nominal) {
@@ -177,95 +264,41 @@ impl Pipe {
                 format!("at most {MAX_FEATURES} features"),
             ));
         }
-        // pieces and texture samples of all features together (each also bounded on its own
-        // below), so that a map's memory and the time to build it stay bounded
-        let (mut pieces, mut samples) = (0.0, 0.0);
-        for (i, f) in self.features.iter().enumerate() {
-            let name = |field: &str| format!("pipe.features[{i}].{field}");
-            let (from, to) = f.range();
-            finite(&name("from"), from)?;
-            finite(&name("to"), to)?;
-            if to <= from {
-                return Err(ParamError::new(
-                    name("to"),
-                    to,
-                    format!("a position > from = {from} m"),
-                ));
-            }
-            match *f {
-                Feature::Patch { eps, n_f, .. } => {
-                    if let Some(e) = eps {
-                        non_negative(&name("eps"), e)?;
-                    }
-                    if let Some(n) = n_f {
-                        within(&name("n_f"), n, 0.0, 1.0)?;
-                    }
-                    if eps.is_none() && n_f.is_none() {
-                        return Err(ParamError::new(
-                            name("eps"),
-                            "missing",
-                            "eps and/or n_f for a patch",
-                        ));
-                    }
-                }
-                Feature::Ramp { eps, n_f, .. } => {
-                    if let Some([a, b]) = eps {
-                        non_negative(&name("eps[0]"), a)?;
-                        non_negative(&name("eps[1]"), b)?;
-                    }
-                    if let Some([a, b]) = n_f {
-                        within(&name("n_f[0]"), a, 0.0, 1.0)?;
-                        within(&name("n_f[1]"), b, 0.0, 1.0)?;
-                    }
-                    if eps.is_none() && n_f.is_none() {
-                        return Err(ParamError::new(
-                            name("eps"),
-                            "missing",
-                            "eps = [from, to] and/or n_f = [from, to] for a ramp",
-                        ));
-                    }
-                }
-                Feature::Texture {
-                    eps_std,
-                    n_f_std,
-                    correlation,
-                    ..
-                } => {
-                    non_negative(&name("eps_std"), eps_std)?;
-                    non_negative(&name("n_f_std"), n_f_std)?;
-                    positive(&name("correlation"), correlation)?;
-                    let samples = (to - from) / (correlation / 8.0);
-                    if samples > MAX_PIECES as f64 {
-                        return Err(ParamError::new(
-                            name("correlation"),
-                            correlation,
-                            format!(
-                                "at least (to - from) * 8 / {MAX_PIECES} m (the texture is sampled every correlation / 8)"
-                            ),
-                        ));
-                    }
-                }
-            }
-            if matches!(f, Feature::Ramp { .. } | Feature::Texture { .. })
-                && (to - from) / self.resolution > MAX_PIECES as f64
-            {
-                return Err(ParamError::new(
-                    "pipe.resolution",
-                    self.resolution,
-                    format!(
-                        "at least {:.3e} m so that features[{i}] has at most {MAX_PIECES} pieces",
-                        (to - from) / MAX_PIECES as f64
-                    ),
-                ));
-            }
-            pieces += match f {
-                Feature::Patch { .. } => 1.0,
-                _ => ((to - from) / self.resolution).ceil(),
-            };
-            if let Feature::Texture { correlation, .. } = *f {
-                samples += ((to - from) / (correlation / 8.0)).ceil() + 1.0;
-            }
+        Ok(())
+    }
+
+    /// Checks feature `i`: its range `[from, to)` (m), its values and, for a ramp or a texture,
+    /// its number of pieces at the pipe's resolution.
+    fn validate_feature(&self, i: usize, f: &Feature) -> Result<(), ParamError> {
+        let name = |field: &str| format!("pipe.features[{i}].{field}");
+        let (from, to) = f.range();
+        finite(&name("from"), from)?;
+        finite(&name("to"), to)?;
+        if to <= from {
+            return Err(ParamError::new(
+                name("to"),
+                to,
+                format!("a position > from = {from} m"),
+            ));
         }
+        f.validate_values(from, to, &name)?;
+        if matches!(f, Feature::Ramp { .. } | Feature::Texture { .. })
+            && (to - from) / self.resolution > MAX_PIECES as f64
+        {
+            return Err(ParamError::new(
+                "pipe.resolution",
+                self.resolution,
+                format!(
+                    "at least {:.3e} m so that features[{i}] has at most {MAX_PIECES} pieces",
+                    (to - from) / MAX_PIECES as f64
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks the `pieces` and texture `samples` of all features together.
+    fn validate_totals(&self, pieces: f64, samples: f64) -> Result<(), ParamError> {
         if pieces > MAX_PIECES as f64 {
             return Err(ParamError::new(
                 "pipe.features",

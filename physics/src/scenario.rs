@@ -433,7 +433,60 @@ impl std::fmt::Display for Caveat {
 }
 
 impl RawScenario {
+    /// The validated scenario of this file with the overrides `o` applied.
     fn resolve(mut self, o: &Overrides) -> Result<Scenario, ParamError> {
+        self.apply_overrides(o)?;
+        if let Some(name) = self.name.as_deref() {
+            check_name(name)?;
+        }
+        if let Some(text) = self.description.as_deref() {
+            check_description(text)?;
+        }
+        let body = Body {
+            area: self.body.area,
+            density: self.body.density,
+            youngs_modulus: self.body.youngs_modulus,
+        };
+        body.validate()?;
+        self.friction.validate()?;
+        let (wave, omega_n) = self.actuation.resolve(&body)?;
+        let length = match self.body.length {
+            Some(l) => positive("body.length", l)?,
+            None => wave.wavelength(),
+        };
+        let (numerics, t_end) = self.resolve_numerics(&wave, omega_n)?;
+        let min_stick_periods = numerics.min_stick_periods;
+        let plant = PlantParams {
+            body,
+            friction: self.friction,
+            length,
+            boundary: self.body.boundary,
+            pipe: self.pipe,
+            numerics,
+        };
+        let scenario = Scenario {
+            name: self.name.unwrap_or_else(|| "unnamed".into()),
+            description: self.description.unwrap_or_default(),
+            plant,
+            wave,
+            t_end,
+            task: self.task,
+            limits: self.limits,
+            min_stick_periods,
+        };
+        // the wave is the file's [actuation] section
+        scenario.validate().map_err(|mut e| {
+            if let Some(rest) = e.field.strip_prefix("wave.") {
+                e.field = format!("actuation.{rest}");
+            }
+            e
+        })?;
+        Ok(scenario)
+    }
+
+    /// Applies the command-line overrides `o` to the file's values (at most one of omega and
+    /// alpha may be overridden; either replaces both of the file's).
+    fn apply_overrides(&mut self, o: &Overrides) -> Result<(), ParamError> {
         if let Some(x) = o.eps {
             self.friction.eps = x;
         }
@@ -470,50 +523,12 @@ impl RawScenario {
         if let Some(x) = o.end_run {
             self.task.end_run = x;
         }
+        Ok(())
+    }
 
-        if let Some(name) = self.name.as_deref() {
-            check_name(name)?;
-        }
-        if let Some(text) = self.description.as_deref() {
-            check_description(text)?;
-        }
-        let body = Body {
-            area: self.body.area,
-            density: self.body.density,
-            youngs_modulus: self.body.youngs_modulus,
-        };
-        body.validate()?;
-        self.friction.validate()?;
-        positive("actuation.k", self.actuation.k)?;
-        let omega_n = self.actuation.k * body.wave_speed();
-        let omega = match (self.actuation.omega, self.actuation.alpha) {
-            (Some(_), Some(_)) => {
-                return Err(ParamError::new(
-                    "actuation.omega/alpha",
-                    "both given",
-                    "exactly one of omega and alpha",
-                ))
-            }
-            (None, None) => {
-                return Err(ParamError::new(
-                    "actuation.omega/alpha",
-                    "neither given",
-                    "exactly one of omega and alpha",
-                ))
-            }
-            (Some(w), None) => positive("actuation.omega", w)?,
-            (None, Some(a)) => positive("actuation.alpha", a)? * omega_n,
-        };
-        let wave = Wave {
-            f0: non_negative("actuation.f0", self.actuation.f0)?,
-            k: self.actuation.k,
-            omega,
-            phase: finite("actuation.phase", self.actuation.phase)?,
-        };
-        let length = match self.body.length {
-            Some(l) => positive("body.length", l)?,
-            None => wave.wavelength(),
-        };
+    /// The file's numerics for the validated `wave` (`omega_n`, rad/s, the natural frequency of
+    /// its mode), and the run's end time `t_end`, s.
+    fn resolve_numerics(&self, wave: &Wave, omega_n: f64) -> Result<(Numerics, f64), ParamError> {
         let cells = self.numerics.cells;
         if cells < crate::params::MIN_CELLS as i64 || cells > crate::params::MAX_CELLS as i64 {
             return Err(ParamError::new(
@@ -537,7 +552,7 @@ impl RawScenario {
             cells: cells as usize,
             courant: match self.numerics.courant {
                 Some(c) => c,
-                None => default_courant(omega / omega_n),
+                None => default_courant(wave.omega / omega_n),
             },
             step: self.numerics.step,
             settle: self.numerics.settle,
@@ -546,32 +561,41 @@ impl RawScenario {
             filter: self.numerics.filter,
             ticks_per_second: self.numerics.ticks_per_second,
         };
-        let plant = PlantParams {
-            body,
-            friction: self.friction,
-            length,
-            boundary: self.body.boundary,
-            pipe: self.pipe,
-            numerics,
-        };
-        let scenario = Scenario {
-            name: self.name.unwrap_or_else(|| "unnamed".into()),
-            description: self.description.unwrap_or_default(),
-            plant,
-            wave,
-            t_end,
-            task: self.task,
-            limits: self.limits,
-            min_stick_periods,
-        };
-        // the wave is the file's [actuation] section
-        scenario.validate().map_err(|mut e| {
-            if let Some(rest) = e.field.strip_prefix("wave.") {
-                e.field = format!("actuation.{rest}");
+        Ok((numerics, t_end))
+    }
+}
+
+impl RawActuation {
+    /// The travelling wave of the [actuation] section on `body` (exactly one of omega and alpha
+    /// given), and the natural frequency `omega_n = k c` of its mode, rad/s.
+    fn resolve(&self, body: &Body) -> Result<(Wave, f64), ParamError> {
+        positive("actuation.k", self.k)?;
+        let omega_n = self.k * body.wave_speed();
+        let omega = match (self.omega, self.alpha) {
+            (Some(_), Some(_)) => {
+                return Err(ParamError::new(
+                    "actuation.omega/alpha",
+                    "both given",
+                    "exactly one of omega and alpha",
+                ))
             }
-            e
-        })?;
-        Ok(scenario)
+            (None, None) => {
+                return Err(ParamError::new(
+                    "actuation.omega/alpha",
+                    "neither given",
+                    "exactly one of omega and alpha",
+                ))
+            }
+            (Some(w), None) => positive("actuation.omega", w)?,
+            (None, Some(a)) => positive("actuation.alpha", a)? * omega_n,
+        };
+        let wave = Wave {
+            f0: non_negative("actuation.f0", self.f0)?,
+            k: self.k,
+            omega,
+            phase: finite("actuation.phase", self.phase)?,
+        };
+        Ok((wave, omega_n))
     }
 }
 

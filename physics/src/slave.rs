@@ -716,21 +716,9 @@ impl Slave {
         for (&r, &text) in vrs.iter().zip(values) {
             match r {
                 vr::PIPE if self.settable(r) => {
-                    let pipe = match serde_json::from_str::<crate::pipe::Pipe>(text) {
+                    let pipe = match parse_pipe(text) {
                         Ok(p) => p,
-                        Err(e) => {
-                            return self.fail(
-                                ParamError::new(
-                                    "pipe",
-                                    format!("{text:.80}"),
-                                    format!(
-                                        "the JSON of a scenario's [pipe] section ({e}), e.g. \
-                                         {{\"features\":[{{\"kind\":\"patch\",\"from\":0.5,\"to\":1.0,\"eps\":0.3}}]}}"
-                                    ),
-                                )
-                                .into(),
-                            )
-                        }
+                        Err(e) => return self.fail(e.into()),
                     };
                     let mut params = self.params.clone();
                     params.pipe = pipe;
@@ -872,4 +860,18 @@ impl Slave {
             .map_err(|e| SlaveError::BadState(e.to_string()))?;
         Ok(state)
     }
+}
+
+/// An example of the `pipe` string variable, for error messages.
+const PIPE_EXAMPLE: &str = r#"{"features":[{"kind":"patch","from":0.5,"to":1.0,"eps":0.3}]}"#;
+
+/// The pipe of the `pipe` string variable: the JSON of a scenario's `[pipe]` section.
+fn parse_pipe(text: &str) -> Result<crate::pipe::Pipe, ParamError> {
+    serde_json::from_str::<crate::pipe::Pipe>(text).map_err(|e| {
+        ParamError::new(
+            "pipe",
+            format!("{text:.80}"),
+            format!("the JSON of a scenario's [pipe] section ({e}), e.g. {PIPE_EXAMPLE}"),
+        )
+    })
 }
