@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use crawler_cli::{Exit, ScenarioArgs};
 
-use crate::children::{Auth, ControllerRun, PlantRun, Programs, RecorderRun};
+use crate::children::{Auth, ControllerRun, Invocation, PlantRun, Programs, RecorderRun};
 use crate::supervise::{first_failure, interrupt, interrupted_with, spawn, Proc};
 
 use crawler_policies::comparison::{route, share};
@@ -222,47 +222,20 @@ fn run_one(
     let run_id = format!("compare-{}-{}-{policy}", std::process::id(), case.name);
     let out = a.out_dir.join(case.name);
     let recording = out.join(format!("{policy}.rrd"));
-    let flags = ScenarioArgs {
-        scenario: Some(scenario.to_path_buf()),
-        t_end: Some(a.t_end),
-        cells: a.cells,
-        task: true,
-        ..ScenarioArgs::default()
-    };
     let checkpoint = out.join(format!("{policy}.ckpt"));
-    let plant = programs.plant(&PlantRun {
-        run_id: &run_id,
-        scenario: &flags,
-        resume: None,
-        wait_timeout: 300.0,
-        checkpoint: Some(&checkpoint),
-        json: true,
-        auth: &Auth::PlantMade,
-    });
-    let recorder = programs.recorder(&RecorderRun {
-        run_id: &run_id,
-        out: &recording,
-        every: a.every,
-        idle_timeout: 300.0,
-        auth: &Auth::PlantMade,
-        viewer: None,
-        viewer_exe: None,
-    });
-    // The controller's own scenario: the case's file (its task and wave), not the plant's grid.
-    let controller_flags = ScenarioArgs {
-        scenario: Some(scenario.to_path_buf()),
-        ..ScenarioArgs::default()
-    };
-    let controller = programs.controller(&ControllerRun {
-        run_id: &run_id,
-        policy: run_policy,
-        params: &[],
-        scenario: &controller_flags,
-        wait_timeout: 300.0,
-        auth: &Auth::PlantMade,
-        extra: &a.controller_args,
-        take_over_at: None,
-    });
+    let Invocations {
+        plant,
+        recorder,
+        controller,
+    } = invocations(
+        programs,
+        a,
+        &run_id,
+        run_policy,
+        scenario,
+        &checkpoint,
+        &recording,
+    );
     let mut plant = spawn("plant", &plant.exe, &plant.args, None)?;
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let mut bridge = spawn(
@@ -274,42 +247,14 @@ fn run_one(
     let _ = ready_rx.recv_timeout(Duration::from_secs(30));
     let mut controller = spawn("controller", &controller.exe, &controller.args, None)?;
     let deadline = started + Duration::from_secs_f64(a.run_timeout);
-    let stop = |why: &str, procs: &mut [&mut Proc]| {
-        for p in procs.iter_mut() {
-            if p.ended().is_none() {
-                interrupt(&p.child);
-            }
-        }
-        for p in procs.iter_mut() {
-            let _ = p.finish(Duration::from_secs(20));
-        }
-        anyhow::anyhow!("{why}")
-    };
-    loop {
-        let failed = first_failure(&mut [&mut plant, &mut controller, &mut bridge]);
-        if interrupted_with(interrupted, failed) {
-            return Err(stop(
-                "interrupted",
-                &mut [&mut plant, &mut controller, &mut bridge],
-            ));
-        }
-        if let Some((name, code)) = failed {
-            return Err(stop(
-                &format!("the {name} failed (exit code {code:?}; its messages are above)"),
-                &mut [&mut plant, &mut controller, &mut bridge],
-            ));
-        }
-        if Instant::now() >= deadline {
-            return Err(stop(
-                &format!("no result within --run-timeout {} s", a.run_timeout),
-                &mut [&mut plant, &mut controller, &mut bridge],
-            ));
-        }
-        if plant.ended().is_some() {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    watch(
+        &mut plant,
+        &mut controller,
+        &mut bridge,
+        deadline,
+        a.run_timeout,
+        interrupted,
+    )?;
     let (_, plant_out) = plant.finish(Duration::ZERO);
     let (ctl_code, _) = controller.finish(Duration::from_secs(30));
     let (bridge_code, _) = bridge.finish(Duration::from_secs(60));
@@ -332,6 +277,124 @@ fn run_one(
         row.row.error = Some(format!("the recorder ended with {bridge_code:?}"));
     }
     Ok(row)
+}
+
+/// The command lines of the three programs of one run.
+struct Invocations {
+    /// The plant.
+    plant: Invocation,
+    /// The recorder.
+    recorder: Invocation,
+    /// The controller.
+    controller: Invocation,
+}
+
+/// The command lines of run `run_id`: the plant on `scenario` (with the task, `--t-end` and
+/// `--cells` of `a`) writing `checkpoint`, the recorder writing `recording`, and the controller
+/// running `run_policy` on the case's file.
+fn invocations(
+    programs: &Programs,
+    a: &CompareArgs,
+    run_id: &str,
+    run_policy: &str,
+    scenario: &Path,
+    checkpoint: &Path,
+    recording: &Path,
+) -> Invocations {
+    let flags = ScenarioArgs {
+        scenario: Some(scenario.to_path_buf()),
+        t_end: Some(a.t_end),
+        cells: a.cells,
+        task: true,
+        ..ScenarioArgs::default()
+    };
+    let plant = programs.plant(&PlantRun {
+        run_id,
+        scenario: &flags,
+        resume: None,
+        wait_timeout: 300.0,
+        checkpoint: Some(checkpoint),
+        json: true,
+        auth: &Auth::PlantMade,
+    });
+    let recorder = programs.recorder(&RecorderRun {
+        run_id,
+        out: recording,
+        every: a.every,
+        idle_timeout: 300.0,
+        auth: &Auth::PlantMade,
+        viewer: None,
+        viewer_exe: None,
+    });
+    // The controller's own scenario: the case's file (its task and wave), not the plant's grid.
+    let controller_flags = ScenarioArgs {
+        scenario: Some(scenario.to_path_buf()),
+        ..ScenarioArgs::default()
+    };
+    let controller = programs.controller(&ControllerRun {
+        run_id,
+        policy: run_policy,
+        params: &[],
+        scenario: &controller_flags,
+        wait_timeout: 300.0,
+        auth: &Auth::PlantMade,
+        extra: &a.controller_args,
+        take_over_at: None,
+    });
+    Invocations {
+        plant,
+        recorder,
+        controller,
+    }
+}
+
+/// Waits until the plant ends. If the run is interrupted, a process fails or `deadline`
+/// passes (`run_timeout`, s, names it), interrupts the processes still running, waits for all
+/// (20 s each at most) and fails.
+fn watch(
+    plant: &mut Proc,
+    controller: &mut Proc,
+    bridge: &mut Proc,
+    deadline: Instant,
+    run_timeout: f64,
+    interrupted: &AtomicBool,
+) -> anyhow::Result<()> {
+    let stop = |why: &str, procs: &mut [&mut Proc]| {
+        for p in procs.iter_mut() {
+            if p.ended().is_none() {
+                interrupt(&p.child);
+            }
+        }
+        for p in procs.iter_mut() {
+            let _ = p.finish(Duration::from_secs(20));
+        }
+        anyhow::anyhow!("{why}")
+    };
+    loop {
+        let failed = first_failure(&mut [&mut *plant, &mut *controller, &mut *bridge]);
+        if interrupted_with(interrupted, failed) {
+            return Err(stop(
+                "interrupted",
+                &mut [&mut *plant, &mut *controller, &mut *bridge],
+            ));
+        }
+        if let Some((name, code)) = failed {
+            return Err(stop(
+                &format!("the {name} failed (exit code {code:?}; its messages are above)"),
+                &mut [&mut *plant, &mut *controller, &mut *bridge],
+            ));
+        }
+        if Instant::now() >= deadline {
+            return Err(stop(
+                &format!("no result within --run-timeout {run_timeout} s"),
+                &mut [&mut *plant, &mut *controller, &mut *bridge],
+            ));
+        }
+        if plant.ended().is_some() {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 /// The numbers of a `Report` in JSON (the plant's `--json` output) that the table needs.

@@ -21,10 +21,12 @@
 
 use std::f64::consts::TAU;
 
-use crawler_physics::friction::{select, select_with_inverse};
-
 use crate::operating_point::OperatingPoint;
 use crate::prediction::{Model, Prediction, Validity};
+
+mod march;
+
+use march::{March, StickRuns};
 
 /// The travelling-wave model, `improved` on the command line.
 #[derive(Debug, Clone, Copy)]
@@ -136,14 +138,15 @@ impl TravellingWaveModel {
             slope: 1.0,
             ..Default::default()
         };
-        let band = op.friction.band();
-        let cv = op.friction.viscous;
+        let march = March {
+            s,
+            band: op.friction.band(),
+            cv: op.friction.viscous,
+            n_f: op.friction.n_f,
+        };
         let ae = op.body.stiffness();
         let w_wave = op.wave;
-        let min_run = self.min_stick_periods * self.steps as f64;
-        // Current stick phase's length in steps, and that of the phase the period began in.
-        let mut run = 0.0f64;
-        let mut first_run: Option<f64> = None;
+        let mut runs = StickRuns::new(self.min_stick_periods * self.steps as f64);
         // The friction selection a point at rest needs, `f0 k cos xi / (eps c_d) + n_F`: a stick
         // phase begins or ends where it crosses +-1 (used to time the switch inside its step).
         let band_f = op.friction.band();
@@ -155,7 +158,6 @@ impl TravellingWaveModel {
             }
         };
         let mut held_prev = held(1.0);
-        let mut ended_first_slide = false;
         for j in 1..=self.steps {
             // rotate to xi_j = dir * j * h (resynchronise now and then to bound round-off)
             if j % 256 == 0 {
@@ -171,109 +173,36 @@ impl TravellingWaveModel {
             // `dir` is the direction of sliding (+1 / -1), or 0 at rest; it only changes at a
             // crossing located inside a step or when the implicit stick rule releases the point.
             let held_now = held(c);
-            // Share of this step in which the point was at rest (set below).
-            let mut rest_share = 0.0;
-            let (w, z_next, s_mean, stuck) = if dir != 0.0 && s.e > 0.0 {
-                // Sliding: the exact step for constant s is z <- z E + z*(s) (1 - E).
-                let z_new = z * s.e + if dir > 0.0 { s.c_plus } else { s.c_minus };
-                let w_trial = wp + z_new;
-                if w_trial * dir > 0.0 {
-                    // still sliding the same way: `dir` is left as it is (recomputing it from w
-                    // would put the sign of w on the step's dependency chain, a third of its time)
-                    out.slope *= s.e;
-                    (w_trial, z_new, dir, false)
-                } else {
-                    // w changed sign inside the step: locate the crossing, continue from w = 0
-                    // with the closed-form stick rule over the rest of the step.
-                    let w_old = wp_prev + z;
-                    let theta = w_old / (w_old - w_trial);
-                    let xi_cross = s.dir * (j as f64 - 1.0 + theta) * s.h;
-                    let wp_cross = s.p * xi_cross.cos() + s.q * xi_cross.sin();
-                    let e_rest = (-s.lambda * (1.0 - theta) * s.h).exp();
-                    let g_rest = (1.0 - e_rest) * band / cv;
-                    let b = wp + e_rest * (-wp_cross) + g_rest * op.friction.n_f;
-                    let sel = select(b, g_rest);
-                    // the end state no longer depends on z0 through this step (it restarted at w = 0)
-                    out.slope = 0.0;
-                    if sel.stuck {
-                        rest_share = 1.0 - theta;
-                    }
-                    out.stuck_once |= sel.stuck;
-                    let s_mean = theta * dir + (1.0 - theta) * sel.s;
-                    dir = direction(sel.stuck, sel.velocity);
-                    (sel.velocity, sel.velocity - wp, s_mean, sel.stuck)
-                }
+            let step = if dir != 0.0 && s.e > 0.0 {
+                march.slide(j, z, wp, wp_prev, &mut dir, &mut out)
             } else {
-                // At rest (or at exact resonance, where w follows the force pointwise): implicit step.
-                let b = wp + s.e * z + s.push;
-                let sel = select_with_inverse(b, s.g, s.inv_g);
-                out.slope = if sel.stuck { 0.0 } else { out.slope * s.e };
-                out.stuck_once |= sel.stuck;
-                // A switch inside the step: where the held selection crosses the band edge.
-                let was_at_rest = dir == 0.0;
-                let edge_share = || {
-                    let edge = if held_now.abs() > 1.0 {
-                        held_now.signum()
-                    } else {
-                        held_prev.signum()
-                    };
-                    if held_now == held_prev {
-                        0.5
-                    } else {
-                        ((edge - held_prev) / (held_now - held_prev)).clamp(0.0, 1.0)
-                    }
-                };
-                rest_share = match (was_at_rest, sel.stuck) {
-                    (true, true) => 1.0,
-                    (true, false) => edge_share(),
-                    (false, true) => 1.0 - edge_share(),
-                    (false, false) => 0.0,
-                };
-                dir = direction(sel.stuck, sel.velocity);
-                (sel.velocity, sel.velocity - wp, sel.s, sel.stuck)
+                // At rest (or at exact resonance, where w follows the force pointwise).
+                march.rest(z, wp, held_prev, held_now, &mut dir, &mut out)
             };
-            z = z_next;
+            z = step.z_next;
             wp_prev = wp;
             held_prev = held_now;
             if !FULL {
                 continue;
             }
+            let w = step.w;
             out.sum_w += w;
             out.min_w = out.min_w.min(w);
             out.max_w = out.max_w.max(w);
-            out.sum_s += s_mean;
+            out.sum_s += step.s_mean;
             out.sum_w_cos += w * c;
-            out.stuck += rest_share;
-            run += rest_share;
-            if !stuck {
-                if run > 0.0 {
-                    if ended_first_slide {
-                        if run >= min_run {
-                            out.episodes += 1;
-                        }
-                    } else {
-                        first_run = Some(run);
-                    }
-                }
-                ended_first_slide = true;
-                run = 0.0;
-            }
+            out.stuck += step.rest_share;
+            runs.step(step.rest_share, step.stuck, &mut out.episodes);
             // tension without the V term: T = A_c E k y + f0 sin xi with y = (V - w) / omega
             let tension_wo_v = -ae * w_wave.k * w / w_wave.omega + w_wave.f0 * sn;
             out.max_tension_y = out.max_tension_y.max(tension_wo_v);
             if let Some(pr) = profile.as_deref_mut() {
                 pr.xi.push((s.dir * j as f64 * s.h).rem_euclid(TAU));
                 pr.velocity.push(w);
-                pr.selection.push(s_mean);
+                pr.selection.push(step.s_mean);
             }
         }
-        // A stick run that wraps around the period boundary counts once.
-        let wrap = run + first_run.unwrap_or(0.0);
-        if run > 0.0 && !ended_first_slide {
-            // stuck for the whole period: no episode ends
-        } else if wrap >= min_run && (run > 0.0 || first_run.is_some()) {
-            out.episodes += 1;
-        }
+        runs.finish(&mut out.episodes);
         out.end_z = z;
         out
     }
@@ -410,15 +339,6 @@ impl TravellingWaveModel {
         };
         self.solve(op, Some(&mut pr))?;
         Some(pr)
-    }
-}
-
-/// The direction of sliding after a step that ended at velocity `w`: +1, -1, or 0 at rest.
-fn direction(stuck: bool, w: f64) -> f64 {
-    if stuck || w == 0.0 {
-        0.0
-    } else {
-        w.signum()
     }
 }
 

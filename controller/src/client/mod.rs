@@ -24,11 +24,11 @@ use crossbeam_channel::Receiver;
 use crawler_cli::Exit;
 use crawler_physics::scenario::Scenario;
 use crawler_protocol::{
-    decode, encode, Actuation as ActuationMsg, Join, ModelInfo, ProcessId, ProcessState,
-    Rejections, Role, RunKeys, RunLimits, State, Status, PROTOCOL_VERSION,
+    decode, encode, Actuation as ActuationMsg, FinalReport, Join, ModelInfo, ProcessId,
+    ProcessState, Rejections, Role, RunKeys, RunLimits, State, Status, PROTOCOL_VERSION,
 };
 use crawler_transport::gate::RunInstance;
-use crawler_transport::participant::Congestion;
+use crawler_transport::participant::{Congestion, Outlet};
 use crawler_transport::{Credential, Network, Participant, Seal};
 
 use answer::Responder;
@@ -344,120 +344,219 @@ fn serve(
         take_over,
     });
     join_out.put(join.clone())?;
-    let mut next_join = Instant::now() + JOIN_EVERY;
-    let asked = match take_over {
-        None => format!("policy {}; asked to join", responder.policy()),
-        Some(0) => format!(
-            "policy {}; asked to take the run over at the next step",
-            responder.policy()
-        ),
-        Some(n) => format!(
-            "policy {}; asked to take the run over at step {n}",
-            responder.policy()
-        ),
-    };
+    let next_join = Instant::now() + JOIN_EVERY;
+    let asked = asked_to_join(responder.policy(), take_over);
     eprintln!("crawler-controller: {asked}");
     publish_status(ProcessState::Running, &asked, 0);
 
-    let mut watch = Watch::new(id.as_str(), &info, plant.as_str());
-    // the answer to the latest step, sent again if the plant resends its state
-    let mut answer: Option<ActuationMsg> = None;
-    let mut first_step = None;
-    let mut stall = opts.stall;
-    let deadline_idle = opts.wait_timeout.max(Duration::from_secs(60));
-    let mut last_seen = Instant::now();
-    let outcome = loop {
-        let verdict = crossbeam_channel::select! {
-            recv(interrupt) -> _ => {
-                publish_status(ProcessState::Stopped, "interrupted", responder.answered());
-                return Ok(ClientOutcome::Ended { reason: "interrupted".into(), exit: Exit::Interrupted });
-            }
-            recv(inbox.gone) -> pid => match pid {
-                Ok(pid) => watch.plant_down(pid.as_str()),
-                Err(_) => Verdict::Wait,
-            },
-            recv(inbox.statuses) -> st => match st {
-                Ok(st) => watch.status(st.split().0, responder.answered()),
-                Err(_) => Verdict::Wait,
-            },
-            recv(inbox.states) -> m => match m.map(|m| decode::<State>(&m.get().bytes)) {
-                Ok(Ok(state)) => {
-                    // a controller waiting to take over waits as long as the run goes on
-                    if state.controller == id.as_str() || take_over.is_some() {
-                        last_seen = Instant::now();
-                    }
-                    let verdict = watch.state(&state);
-                    match verdict {
-                        Verdict::Answer => {
-                            if let Some((step, hold)) = stall.filter(|(s, _)| *s == state.step) {
-                                eprintln!("crawler-controller: holding the answer to step {step} for {} ms (--stall)", hold.as_millis());
-                                std::thread::sleep(hold);
-                                stall = None;
-                            }
-                            first_step.get_or_insert(state.step);
-                            let (actuation, prediction) = responder.respond(&state);
-                            actuation_out.put(encode(&actuation))?;
-                            if let Some(pr) = prediction {
-                                let _ = prediction_out.put(encode(&pr));
-                            }
-                            answer = Some(actuation);
-                        }
-                        Verdict::Resend => {
-                            if let Some(a) = &answer {
-                                actuation_out.put(encode(a))?;
-                            }
-                        }
-                        _ => {}
-                    }
-                    verdict
+    let mut answering = Answering {
+        id,
+        take_over,
+        responder: &mut responder,
+        watch: Watch::new(id.as_str(), &info, plant.as_str()),
+        actuation_out: &actuation_out,
+        prediction_out: &prediction_out,
+        join_out: &join_out,
+        join: &join,
+        next_join,
+        answer: None,
+        first_step: None,
+        stall: opts.stall,
+        deadline_idle: opts.wait_timeout.max(Duration::from_secs(60)),
+        last_seen: Instant::now(),
+    };
+    let outcome = match answering.run(&inbox, interrupt, keys, &publish_status)? {
+        LoopEnd::Done(outcome) => outcome.map(|report| report.map(|r| *r)),
+        LoopEnd::Ended(ended) => return Ok(ended),
+    };
+    let Answering {
+        watch, first_step, ..
+    } = answering;
+    Ok(wrap_up(
+        outcome,
+        responder,
+        &watch,
+        first_step,
+        p,
+        &publish_status,
+    ))
+}
+
+/// What a controller running `policy` says it asked for: to join, or to take the run over at
+/// step `take_over` (0: the next).
+fn asked_to_join(policy: &str, take_over: Option<u64>) -> String {
+    match take_over {
+        None => format!("policy {policy}; asked to join"),
+        Some(0) => format!("policy {policy}; asked to take the run over at the next step"),
+        Some(n) => format!("policy {policy}; asked to take the run over at step {n}"),
+    }
+}
+
+/// How the answering loop ended.
+enum LoopEnd {
+    /// The run finished (with the plant's final report, if it sent one) or was handed over:
+    /// this controller's part ends with a summary.
+    Done(Result<Option<Box<FinalReport>>, HandOver>),
+    /// The run ended otherwise: this is the outcome.
+    Ended(ClientOutcome),
+}
+
+/// The controller at work in the run: where it sends, and what it keeps between messages.
+struct Answering<'s, 'a> {
+    /// This controller's id.
+    id: ProcessId,
+    /// The step at which this controller asked to take the run over (0: the next), if it did.
+    take_over: Option<u64>,
+    /// The policy answering the states.
+    responder: &'s mut Responder<'a>,
+    /// What the controller knows of its plant and of the run's end.
+    watch: Watch,
+    /// Publisher of the actuations.
+    actuation_out: &'s Outlet,
+    /// Publisher of the models' predictions.
+    prediction_out: &'s Outlet,
+    /// Publisher of the join request.
+    join_out: &'s Outlet,
+    /// The encoded join request.
+    join: &'s [u8],
+    /// When to ask to join again if the plant's states are not addressed to this controller yet.
+    next_join: Instant,
+    /// The answer to the latest step, sent again if the plant resends its state.
+    answer: Option<ActuationMsg>,
+    /// The first step this controller answered.
+    first_step: Option<u64>,
+    /// The answer to hold, and for how long (`--stall`), until it is held.
+    stall: Option<(u64, Duration)>,
+    /// Longest wait for a state before giving up.
+    deadline_idle: Duration,
+    /// When the last state that keeps this controller waiting came.
+    last_seen: Instant,
+}
+
+impl Answering<'_, '_> {
+    /// Answers the plant's messages from `inbox` until the run ends, `interrupt` comes, or no
+    /// state came for `deadline_idle`; `publish_status` tells the run of a stop.
+    fn run(
+        &mut self,
+        inbox: &Inbox,
+        interrupt: &Receiver<Interrupt>,
+        keys: &RunKeys,
+        publish_status: &dyn Fn(ProcessState, &str, u64),
+    ) -> anyhow::Result<LoopEnd> {
+        loop {
+            let verdict = crossbeam_channel::select! {
+                recv(interrupt) -> _ => {
+                    publish_status(ProcessState::Stopped, "interrupted", self.responder.answered());
+                    return Ok(LoopEnd::Ended(ClientOutcome::Ended { reason: "interrupted".into(), exit: Exit::Interrupted }));
                 }
-                Ok(Err(e)) => {
-                    watch.ignore();
-                    if watch.ignored() <= 5 {
-                        eprintln!("crawler-controller: ignoring an invalid state: {e}");
+                recv(inbox.gone) -> pid => match pid {
+                    Ok(pid) => self.watch.plant_down(pid.as_str()),
+                    Err(_) => Verdict::Wait,
+                },
+                recv(inbox.statuses) -> st => match st {
+                    Ok(st) => self.watch.status(st.split().0, self.responder.answered()),
+                    Err(_) => Verdict::Wait,
+                },
+                recv(inbox.states) -> m => match m.map(|m| decode::<State>(&m.get().bytes)) {
+                    Ok(Ok(state)) => self.state(&state)?,
+                    Ok(Err(e)) => {
+                        self.watch.ignore();
+                        if self.watch.ignored() <= 5 {
+                            eprintln!("crawler-controller: ignoring an invalid state: {e}");
+                        }
+                        Verdict::Wait
+                    }
+                    Err(_) => Verdict::Wait,
+                },
+                default(JOIN_EVERY) => {
+                    if self.last_seen.elapsed() > self.deadline_idle {
+                        let reason = match self.watch.other_controller() {
+                            Some(c) => format!("run {} already has controller {c}", keys.run()),
+                            None => format!("no state from the plant for {:.0} s", self.deadline_idle.as_secs_f64()),
+                        };
+                        return Ok(LoopEnd::Ended(ClientOutcome::Ended { reason, exit: Exit::Timeout }));
                     }
                     Verdict::Wait
+                },
+            };
+            // until the plant's states are addressed to it, a controller asks again
+            if self.watch.latest_step().is_none() && Instant::now() >= self.next_join {
+                self.join_out.put(self.join.to_vec())?;
+                self.next_join = Instant::now() + JOIN_EVERY;
+            }
+            for note in self.watch.take_notes() {
+                eprintln!("crawler-controller: {note}");
+            }
+            match verdict {
+                Verdict::Wait | Verdict::Answer | Verdict::Resend => {}
+                Verdict::Finished(report) => return Ok(LoopEnd::Done(Ok(report))),
+                Verdict::HandedOver { to, step } => {
+                    return Ok(LoopEnd::Done(Err(HandOver { to, step })))
                 }
-                Err(_) => Verdict::Wait,
-            },
-            default(JOIN_EVERY) => {
-                if last_seen.elapsed() > deadline_idle {
-                    let reason = match watch.other_controller() {
-                        Some(c) => format!("run {} already has controller {c}", keys.run()),
-                        None => format!("no state from the plant for {:.0} s", deadline_idle.as_secs_f64()),
-                    };
-                    return Ok(ClientOutcome::Ended { reason, exit: Exit::Timeout });
+                Verdict::Ended(reason) => {
+                    publish_status(ProcessState::Stopped, &reason, self.responder.answered());
+                    return Ok(LoopEnd::Ended(ClientOutcome::Ended {
+                        reason,
+                        exit: Exit::Failure,
+                    }));
                 }
-                Verdict::Wait
-            },
-        };
-        // until the plant's states are addressed to it, a controller asks again
-        if watch.latest_step().is_none() && Instant::now() >= next_join {
-            join_out.put(join.clone())?;
-            next_join = Instant::now() + JOIN_EVERY;
+                Verdict::PlantLeft => {
+                    return Ok(LoopEnd::Ended(ClientOutcome::Ended {
+                        reason: "the plant left the run".into(),
+                        exit: Exit::PeerLost,
+                    }))
+                }
+            }
         }
-        for note in watch.take_notes() {
-            eprintln!("crawler-controller: {note}");
+    }
+
+    /// Takes a decoded `state`: answers it if it is a new step for this controller, sends the
+    /// same answer again if it is a resent one; the watch's verdict.
+    fn state(&mut self, state: &State) -> anyhow::Result<Verdict> {
+        // a controller waiting to take over waits as long as the run goes on
+        if state.controller == self.id.as_str() || self.take_over.is_some() {
+            self.last_seen = Instant::now();
         }
+        let verdict = self.watch.state(state);
         match verdict {
-            Verdict::Wait | Verdict::Answer | Verdict::Resend => {}
-            Verdict::Finished(report) => break Ok(report.map(|r| *r)),
-            Verdict::HandedOver { to, step } => break Err(HandOver { to, step }),
-            Verdict::Ended(reason) => {
-                publish_status(ProcessState::Stopped, &reason, responder.answered());
-                return Ok(ClientOutcome::Ended {
-                    reason,
-                    exit: Exit::Failure,
-                });
+            Verdict::Answer => {
+                if let Some((step, hold)) = self.stall.filter(|(s, _)| *s == state.step) {
+                    eprintln!(
+                        "crawler-controller: holding the answer to step {step} for {} ms (--stall)",
+                        hold.as_millis()
+                    );
+                    std::thread::sleep(hold);
+                    self.stall = None;
+                }
+                self.first_step.get_or_insert(state.step);
+                let (actuation, prediction) = self.responder.respond(state);
+                self.actuation_out.put(encode(&actuation))?;
+                if let Some(pr) = prediction {
+                    let _ = self.prediction_out.put(encode(&pr));
+                }
+                self.answer = Some(actuation);
             }
-            Verdict::PlantLeft => {
-                return Ok(ClientOutcome::Ended {
-                    reason: "the plant left the run".into(),
-                    exit: Exit::PeerLost,
-                })
+            Verdict::Resend => {
+                if let Some(a) = &self.answer {
+                    self.actuation_out.put(encode(a))?;
+                }
             }
+            _ => {}
         }
-    };
+        Ok(verdict)
+    }
+}
+
+/// The end of this controller's part once the run finished or was handed over (`outcome`):
+/// publishes the finished status, tells what was resent and ignored, and sums the run up.
+fn wrap_up(
+    outcome: Result<Option<FinalReport>, HandOver>,
+    responder: Responder<'_>,
+    watch: &Watch,
+    first_step: Option<u64>,
+    p: &Participant,
+    publish_status: &dyn Fn(ProcessState, &str, u64),
+) -> ClientOutcome {
     let answered = responder.answered();
     let said = match &outcome {
         Ok(_) => format!("answered {answered} steps"),
@@ -481,7 +580,7 @@ fn serve(
             refusals.as_deref().unwrap_or("none")
         );
     }
-    Ok(match outcome {
+    match outcome {
         Ok(report) => {
             ClientOutcome::Finished(Box::new(responder.summary(report, first_step, None)))
         }
@@ -489,5 +588,5 @@ fn serve(
             eprintln!("crawler-controller: {said}");
             ClientOutcome::HandedOver(Box::new(responder.summary(None, first_step, Some(h))))
         }
-    })
+    }
 }

@@ -230,70 +230,14 @@ impl Problem {
         model: &ModelChoice,
         grid: &GridSpec,
     ) -> Result<OptimizeReport, OptimizeError> {
-        self.validate()?;
-        if grid.omega_points < 2
-            || (grid.k_points < 2 && self.body_length == BodyLength::OneWavelength)
-        {
-            return Err(crawler_physics::ParamError::new(
-                "grid",
-                format!("{} x {}", grid.omega_points, grid.k_points),
-                "at least 2 x 2 points",
-            )
-            .into());
-        }
-        let tol = grid.tie_tolerance;
-        if !(0.0..=0.1).contains(&tol) {
-            return Err(crawler_physics::ParamError::new(
-                "grid.tie_tolerance",
-                tol,
-                "a relative speed tolerance in [0, 0.1]",
-            )
-            .into());
-        }
+        let tol = self.check_grid(grid)?;
         let omegas = linspace(
             self.limits.omega[0],
             self.limits.omega[1],
             grid.omega_points,
         );
         let ks = self.k_values(grid.k_points)?;
-        let peak = h_peak(self.friction.n_f);
-        let rows: Vec<(f64, Option<f64>)> = match model {
-            ModelChoice::Paper => ks.iter().map(|&k| self.mileage_root(k, peak)).collect(),
-            ModelChoice::Improved(_) => Vec::new(),
-        };
-        let n_omega = omegas.len();
-        // row-major: k by row, omega along it
-        let cells = parallel_map_range(ks.len() * n_omega, |i| {
-            let (row, omega) = (i / n_omega, omegas[i % n_omega]);
-            let k = ks[row];
-            let alpha = omega / (k * self.body.wave_speed());
-            let choice = match model {
-                ModelChoice::Paper => self.choose_paper_with(omega, k, peak, &rows[row]),
-                ModelChoice::Improved(_) => self.choose_generic(model, omega, k),
-            };
-            match choice {
-                Ok(c) => Cell {
-                    omega,
-                    k,
-                    alpha,
-                    f0: Some(c.f0),
-                    velocity: Some(c.velocity),
-                    binding: c.binding,
-                    infeasibility: None,
-                    reason: None,
-                },
-                Err(why) => Cell {
-                    omega,
-                    k,
-                    alpha,
-                    f0: None,
-                    velocity: None,
-                    binding: Binding::Infeasible,
-                    infeasibility: Some(why.cause),
-                    reason: Some(why.message),
-                },
-            }
-        });
+        let cells = self.grid_cells(model, &omegas, &ks);
         let Some(grid_top) = cells
             .iter()
             .filter_map(|c| c.f0.and(c.velocity))
@@ -301,79 +245,29 @@ impl Problem {
         else {
             return Err(OptimizeError::Infeasible(infeasibility_summary(&cells)));
         };
-        // One pass over the cells within the tolerance of the fastest: the best of them (a cell
-        // outside never beats one inside), and their spread.
-        let floor = grid_top * (1.0 - tol);
-        let mut best: Option<(usize, f64, f64)> = None;
-        let mut tied_cells = 0;
-        let widen = |r: &mut [f64; 2], x: f64| *r = [r[0].min(x), r[1].max(x)];
-        let empty = [f64::INFINITY, f64::NEG_INFINITY];
-        let (mut tied_speeds, mut tied_omega, mut tied_k) = (empty, empty, empty);
-        for (i, c) in cells.iter().enumerate() {
-            let (Some(v), Some(f0)) = (c.velocity, c.f0) else {
-                continue;
-            };
-            if v < floor || v.is_nan() {
-                continue;
-            }
-            tied_cells += 1;
-            widen(&mut tied_speeds, v);
-            widen(&mut tied_omega, c.omega);
-            widen(&mut tied_k, c.k);
-            if best.is_none_or(|b| better((v, f0), (b.1, b.2), grid_top, tol)) {
-                best = Some((i, v, f0));
-            }
-        }
-        let (best_index, _, _) = best.expect("the fastest cell is within the tolerance");
-        let mut top = grid_top;
-        let (mut omega, mut k) = (cells[best_index].omega, cells[best_index].k);
-        let mut choice = self
+        let ties = Ties::of(&cells, grid_top, tol);
+        let (omega, k) = (cells[ties.best_index].omega, cells[ties.best_index].k);
+        let choice = self
             .choose(model, omega, k)
             .map_err(|e| OptimizeError::Infeasible(e.message))?;
-        let mut evaluations = 0;
-        if grid.refine {
-            // A compass search in (alpha, k): a step in k keeps alpha, so the search can follow
-            // the resonance line, along which the optimum's ridge runs (docs/physics.md §5.3).
-            let c = self.body.wave_speed();
-            let d_alpha = (omegas[1] - omegas[0]).abs() / (k * c);
-            let d_k = if ks.len() > 1 && self.body_length == BodyLength::OneWavelength {
-                (ks[1] - ks[0]).abs()
-            } else {
-                0.0
-            };
-            let mut alpha = omega / (k * c);
-            let (mut s_alpha, mut s_k) = (0.5 * d_alpha, 0.5 * d_k);
-            while s_alpha > 1e-4 * d_alpha && evaluations < 200 {
-                let mut improved = false;
-                for (da, dk) in [(s_alpha, 0.0), (-s_alpha, 0.0), (0.0, s_k), (0.0, -s_k)] {
-                    if da == 0.0 && dk == 0.0 {
-                        continue;
-                    }
-                    let (a2, k2) = (alpha + da, k + dk);
-                    let w2 = a2 * k2 * c;
-                    if w2 < self.limits.omega[0]
-                        || w2 > self.limits.omega[1]
-                        || k2 < self.limits.k[0]
-                        || k2 > self.limits.k[1]
-                    {
-                        continue;
-                    }
-                    evaluations += 1;
-                    if let Ok(c) = self.choose(model, w2, k2) {
-                        top = top.max(c.velocity);
-                        if better((c.velocity, c.f0), (choice.velocity, choice.f0), top, tol) {
-                            (alpha, omega, k) = (a2, w2, k2);
-                            choice = c;
-                            improved = true;
-                        }
-                    }
-                }
-                if !improved {
-                    s_alpha *= 0.5;
-                    s_k *= 0.5;
-                }
-            }
-        }
+        let start = Refined {
+            omega,
+            k,
+            choice,
+            top: grid_top,
+            evaluations: 0,
+        };
+        let Refined {
+            omega,
+            k,
+            choice,
+            top,
+            evaluations,
+        } = if grid.refine {
+            self.refine(model, &omegas, &ks, start, tol)
+        } else {
+            start
+        };
         let op = self.point(omega, k, choice.f0);
         let prediction = model.predict(&op);
         let margins = Margins::of(
@@ -407,12 +301,212 @@ impl Problem {
                 criterion: "lowest f0 among the cells within the tolerance of the fastest speed",
                 tolerance: tol,
                 fastest_velocity: top,
-                tied_cells,
-                tied_speed_spread: (tied_speeds[1] - tied_speeds[0]) / tied_speeds[1],
-                tied_omega,
-                tied_k,
+                tied_cells: ties.count,
+                tied_speed_spread: (ties.speeds[1] - ties.speeds[0]) / ties.speeds[1],
+                tied_omega: ties.omega,
+                tied_k: ties.k,
                 speed_given_up: 1.0 - choice.velocity / top,
             },
         })
     }
+
+    /// Validates the problem and the grid; returns the tie tolerance (relative speed share).
+    fn check_grid(&self, grid: &GridSpec) -> Result<f64, OptimizeError> {
+        self.validate()?;
+        if grid.omega_points < 2
+            || (grid.k_points < 2 && self.body_length == BodyLength::OneWavelength)
+        {
+            return Err(crawler_physics::ParamError::new(
+                "grid",
+                format!("{} x {}", grid.omega_points, grid.k_points),
+                "at least 2 x 2 points",
+            )
+            .into());
+        }
+        let tol = grid.tie_tolerance;
+        if !(0.0..=0.1).contains(&tol) {
+            return Err(crawler_physics::ParamError::new(
+                "grid.tie_tolerance",
+                tol,
+                "a relative speed tolerance in [0, 0.1]",
+            )
+            .into());
+        }
+        Ok(tol)
+    }
+
+    /// Evaluates every grid cell, k-major: `cells[j * omegas.len() + i]` is
+    /// `(omegas[i], ks[j])` (omega in rad/s, k in rad/m).
+    fn grid_cells(&self, model: &ModelChoice, omegas: &[f64], ks: &[f64]) -> Vec<Cell> {
+        let peak = h_peak(self.friction.n_f);
+        let rows: Vec<(f64, Option<f64>)> = match model {
+            ModelChoice::Paper => ks.iter().map(|&k| self.mileage_root(k, peak)).collect(),
+            ModelChoice::Improved(_) => Vec::new(),
+        };
+        let n_omega = omegas.len();
+        // row-major: k by row, omega along it
+        parallel_map_range(ks.len() * n_omega, |i| {
+            let (row, omega) = (i / n_omega, omegas[i % n_omega]);
+            let k = ks[row];
+            let alpha = omega / (k * self.body.wave_speed());
+            let choice = match model {
+                ModelChoice::Paper => self.choose_paper_with(omega, k, peak, &rows[row]),
+                ModelChoice::Improved(_) => self.choose_generic(model, omega, k),
+            };
+            match choice {
+                Ok(c) => Cell {
+                    omega,
+                    k,
+                    alpha,
+                    f0: Some(c.f0),
+                    velocity: Some(c.velocity),
+                    binding: c.binding,
+                    infeasibility: None,
+                    reason: None,
+                },
+                Err(why) => Cell {
+                    omega,
+                    k,
+                    alpha,
+                    f0: None,
+                    velocity: None,
+                    binding: Binding::Infeasible,
+                    infeasibility: Some(why.cause),
+                    reason: Some(why.message),
+                },
+            }
+        })
+    }
+
+    /// Refines `start` by a compass search in `(alpha, k)` (alpha dimensionless, k in rad/m);
+    /// the grids `omegas` (rad/s) and `ks` (rad/m) set the initial steps.
+    fn refine(
+        &self,
+        model: &ModelChoice,
+        omegas: &[f64],
+        ks: &[f64],
+        start: Refined,
+        tol: f64,
+    ) -> Refined {
+        let Refined {
+            mut omega,
+            mut k,
+            mut choice,
+            mut top,
+            mut evaluations,
+        } = start;
+        // A compass search in (alpha, k): a step in k keeps alpha, so the search can follow
+        // the resonance line, along which the optimum's ridge runs (docs/physics.md §5.3).
+        let c = self.body.wave_speed();
+        let d_alpha = (omegas[1] - omegas[0]).abs() / (k * c);
+        let d_k = if ks.len() > 1 && self.body_length == BodyLength::OneWavelength {
+            (ks[1] - ks[0]).abs()
+        } else {
+            0.0
+        };
+        let mut alpha = omega / (k * c);
+        let (mut s_alpha, mut s_k) = (0.5 * d_alpha, 0.5 * d_k);
+        while s_alpha > 1e-4 * d_alpha && evaluations < 200 {
+            let mut improved = false;
+            for (da, dk) in [(s_alpha, 0.0), (-s_alpha, 0.0), (0.0, s_k), (0.0, -s_k)] {
+                if da == 0.0 && dk == 0.0 {
+                    continue;
+                }
+                let (a2, k2) = (alpha + da, k + dk);
+                let w2 = a2 * k2 * c;
+                if w2 < self.limits.omega[0]
+                    || w2 > self.limits.omega[1]
+                    || k2 < self.limits.k[0]
+                    || k2 > self.limits.k[1]
+                {
+                    continue;
+                }
+                evaluations += 1;
+                if let Ok(c) = self.choose(model, w2, k2) {
+                    top = top.max(c.velocity);
+                    if better((c.velocity, c.f0), (choice.velocity, choice.f0), top, tol) {
+                        (alpha, omega, k) = (a2, w2, k2);
+                        choice = c;
+                        improved = true;
+                    }
+                }
+            }
+            if !improved {
+                s_alpha *= 0.5;
+                s_k *= 0.5;
+            }
+        }
+        Refined {
+            omega,
+            k,
+            choice,
+            top,
+            evaluations,
+        }
+    }
+}
+
+/// The grid cells within the tie tolerance of the fastest grid cell: the best of them and their
+/// spread.
+struct Ties {
+    /// Index into the cells of the best tied cell.
+    best_index: usize,
+    /// How many cells tie.
+    count: usize,
+    /// Smallest and largest speed among the tied cells, m/s.
+    speeds: [f64; 2],
+    /// Smallest and largest `omega` among the tied cells, rad/s.
+    omega: [f64; 2],
+    /// Smallest and largest `k` among the tied cells, rad/m.
+    k: [f64; 2],
+}
+
+impl Ties {
+    /// One pass over the cells within `tol` (relative) of the fastest speed `grid_top` (m/s):
+    /// the best of them (a cell outside never beats one inside), and their spread.
+    fn of(cells: &[Cell], grid_top: f64, tol: f64) -> Self {
+        let floor = grid_top * (1.0 - tol);
+        let mut best: Option<(usize, f64, f64)> = None;
+        let mut tied_cells = 0;
+        let widen = |r: &mut [f64; 2], x: f64| *r = [r[0].min(x), r[1].max(x)];
+        let empty = [f64::INFINITY, f64::NEG_INFINITY];
+        let (mut tied_speeds, mut tied_omega, mut tied_k) = (empty, empty, empty);
+        for (i, c) in cells.iter().enumerate() {
+            let (Some(v), Some(f0)) = (c.velocity, c.f0) else {
+                continue;
+            };
+            if v < floor || v.is_nan() {
+                continue;
+            }
+            tied_cells += 1;
+            widen(&mut tied_speeds, v);
+            widen(&mut tied_omega, c.omega);
+            widen(&mut tied_k, c.k);
+            if best.is_none_or(|b| better((v, f0), (b.1, b.2), grid_top, tol)) {
+                best = Some((i, v, f0));
+            }
+        }
+        let (best_index, _, _) = best.expect("the fastest cell is within the tolerance");
+        Self {
+            best_index,
+            count: tied_cells,
+            speeds: tied_speeds,
+            omega: tied_omega,
+            k: tied_k,
+        }
+    }
+}
+
+/// The state of the search: the chosen `(omega, k)` and its choice of `f0`.
+struct Refined {
+    /// Angular frequency, rad/s.
+    omega: f64,
+    /// Wave number, rad/m.
+    k: f64,
+    /// The amplitude, binding constraint and speed at `(omega, k)`.
+    choice: Choice,
+    /// The fastest speed seen so far (grid and refinement), m/s.
+    top: f64,
+    /// Model evaluations of the refinement so far.
+    evaluations: usize,
 }

@@ -343,23 +343,97 @@ impl Setting {
             text += "; nothing to plan (distance reached or no energy left)";
             return done(None, text);
         }
-        let sigma_cap = (1.0 - self.stress_margin) * self.task.sigma_max;
+        let plan = Replan {
+            setting: self,
+            model: &model,
+            job,
+            c,
+            friction,
+            sigma_cap: (1.0 - self.stress_margin) * self.task.sigma_max,
+        };
+        let Tightened {
+            best,
+            last_err,
+            d_s,
+        } = plan.tightened();
+        if let Some(cand) = best.filter(|c| c.finishes) {
+            text += &describe(&cand, "new gait");
+            return done(Some(cand), text);
+        }
+        // no gait finishes by the bounds: the gait of the largest mileage bound the optimiser
+        // reaches, at the smallest budget it still answers for (bisection)
+        let found = plan.largest_mileage(best, d_s);
+        match found {
+            Some(cand) => {
+                text += &format!(
+                    "; no gait finishes within the bounds ({}): the gait of the largest mileage bound found",
+                    if last_err.is_empty() { "margins not met".to_string() } else { last_err }
+                );
+                text += &describe(&cand, "gait");
+                done(Some(cand), text)
+            }
+            None => {
+                text += &format!("; no feasible gait ({last_err})");
+                done(None, text)
+            }
+        }
+    }
+}
+
+/// One re-plan's fixed inputs: the problem, the model, the job, the corrections and the
+/// estimated friction.
+struct Replan<'a> {
+    /// The problem the worker solves.
+    setting: &'a Setting,
+    /// The model the optimiser uses.
+    model: &'a TravellingWaveModel,
+    /// The request.
+    job: &'a Job,
+    /// Corrections `[c_V, c_P, c_sigma]` of the plant over the model (dimensionless).
+    c: [f64; 3],
+    /// The friction law at the estimate.
+    friction: Friction,
+    /// The stress the plan may reach, `(1 - m_sigma) sigma_max`, Pa.
+    sigma_cap: f64,
+}
+
+/// The optimiser's answer under margins tightened until it keeps its own.
+struct Tightened {
+    /// The last answer, if the optimiser and the model gave one.
+    best: Option<Candidate>,
+    /// Why the last try failed (empty if none did).
+    last_err: String,
+    /// The last relative stress margin used (dimensionless).
+    d_s: f64,
+}
+
+impl Replan<'_> {
+    /// Runs the optimiser with the budget and the stress limit tightened by the margins found
+    /// at the previous answer, three times at most, until the answer finishes by its bounds.
+    fn tightened(&self) -> Tightened {
+        let (model, job, c) = (self.model, self.job, self.c);
+        let b = &job.belief;
         // margins start from those of the gait applied, then from each answer's own
-        let (mut d_m, mut d_s) = match self.spreads(&model, b, job.wave) {
+        let (mut d_m, mut d_s) = match self.setting.spreads(model, b, job.wave) {
             Some([_, sm, ss]) => (
-                self.kappa * sm + self.model_margin,
-                self.kappa * ss + self.model_margin,
+                self.setting.kappa * sm + self.setting.model_margin,
+                self.setting.kappa * ss + self.setting.model_margin,
             ),
-            None => (self.model_margin, self.model_margin),
+            None => (self.setting.model_margin, self.setting.model_margin),
         };
         let mut last_err = String::new();
         let mut best: Option<Candidate> = None;
         for _ in 0..3 {
             let energy = job.energy * (c[0] / c[1]) * (1.0 - d_m).max(0.05);
-            let sigma = sigma_cap / (c[2] * (1.0 + d_s));
-            match self.optimum(&model, friction, job.distance, energy, sigma) {
+            let sigma = self.sigma_cap / (c[2] * (1.0 + d_s));
+            match self
+                .setting
+                .optimum(model, self.friction, job.distance, energy, sigma)
+            {
                 Ok(w) => {
-                    let Some(cand) = self.candidate(&model, b, c, w, job.distance, job.energy)
+                    let Some(cand) =
+                        self.setting
+                            .candidate(model, b, c, w, job.distance, job.energy)
                     else {
                         last_err = "the model has no prediction at the optimum".into();
                         break;
@@ -368,9 +442,9 @@ impl Setting {
                     if cand.finishes {
                         break;
                     }
-                    let [_, sm, ss] = self.spreads(&model, b, w).unwrap_or([0.0; 3]);
-                    d_m = d_m.max(self.kappa * sm + self.model_margin) + 0.01;
-                    d_s = d_s.max(self.kappa * ss + self.model_margin) + 0.01;
+                    let [_, sm, ss] = self.setting.spreads(model, b, w).unwrap_or([0.0; 3]);
+                    d_m = d_m.max(self.setting.kappa * sm + self.setting.model_margin) + 0.01;
+                    d_s = d_s.max(self.setting.kappa * ss + self.setting.model_margin) + 0.01;
                 }
                 Err(e) => {
                     last_err = e;
@@ -378,19 +452,37 @@ impl Setting {
                 }
             }
         }
-        if let Some(cand) = best.filter(|c| c.finishes) {
-            text += &describe(&cand, "new gait");
-            return done(Some(cand), text);
+        Tightened {
+            best,
+            last_err,
+            d_s,
         }
-        // no gait finishes by the bounds: the gait of the largest mileage bound the optimiser
-        // reaches, at the smallest budget it still answers for (bisection)
-        let try_budget = |e: f64| -> Option<Candidate> {
-            let sigma = sigma_cap / (c[2] * (1.0 + d_s));
-            let w = self
-                .optimum(&model, friction, job.distance, e, sigma)
-                .ok()?;
-            self.candidate(&model, b, c, w, job.distance, job.energy)
-        };
+    }
+
+    /// The candidate the optimiser gives for the budget `e` (J, model units) under the stress
+    /// margin `d_s` (relative), if any.
+    fn try_budget(&self, e: f64, d_s: f64) -> Option<Candidate> {
+        let sigma = self.sigma_cap / (self.c[2] * (1.0 + d_s));
+        let w = self
+            .setting
+            .optimum(self.model, self.friction, self.job.distance, e, sigma)
+            .ok()?;
+        self.setting.candidate(
+            self.model,
+            &self.job.belief,
+            self.c,
+            w,
+            self.job.distance,
+            self.job.energy,
+        )
+    }
+
+    /// The candidate of the largest mileage bound among `best` and the optimiser's answers at
+    /// the budgets it still answers for, down to the smallest (bisection), under the stress
+    /// margin `d_s` (relative).
+    fn largest_mileage(&self, best: Option<Candidate>, d_s: f64) -> Option<Candidate> {
+        let (job, c) = (self.job, self.c);
+        let try_budget = |e: f64| self.try_budget(e, d_s);
         let mut found = best;
         let start = job.energy * c[0] / c[1];
         let (mut lo, mut hi) = (None, None);
@@ -436,20 +528,7 @@ impl Setting {
                 }
             }
         }
-        match found {
-            Some(cand) => {
-                text += &format!(
-                    "; no gait finishes within the bounds ({}): the gait of the largest mileage bound found",
-                    if last_err.is_empty() { "margins not met".to_string() } else { last_err }
-                );
-                text += &describe(&cand, "gait");
-                done(Some(cand), text)
-            }
-            None => {
-                text += &format!("; no feasible gait ({last_err})");
-                done(None, text)
-            }
-        }
+        found
     }
 }
 
