@@ -69,6 +69,124 @@ fn sbin(name: &str) -> PathBuf {
     PathBuf::from(name)
 }
 
+/// Fails the test, saying what is missing and how to get it, unless Slurm's daemons and
+/// commands and MUNGE are installed.
+fn assert_slurm_is_installed() {
+    let missing: Vec<&str> = [
+        "slurmctld",
+        "slurmd",
+        "sbatch",
+        "squeue",
+        "scancel",
+        "munged",
+    ]
+    .into_iter()
+    .filter(|c| !sbin(c).is_file())
+    .collect();
+    assert!(
+        missing.is_empty(),
+        "this test needs Slurm and MUNGE (missing: {}): run scripts/setup.sh once \
+         (it installs Debian's slurmctld, slurmd, slurm-client and munge; needs root or sudo)",
+        missing.join(", ")
+    );
+}
+
+/// Starts `cmd` as the daemon `name`, its standard streams closed.
+fn spawn_daemon(name: &'static str, cmd: &mut Command) -> Daemon {
+    let child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!("cannot start {name}: {e} (is Slurm installed? run scripts/setup.sh)")
+        });
+    Daemon { name, child }
+}
+
+/// Starts munged with a new key of its own in `d`, listening on `socket`, and waits (at most
+/// 10 s) until the socket exists.
+fn start_munged(d: &Path, socket: &Path) -> Daemon {
+    // munge: our own key and socket (the key must be private to its owner)
+    let mut key = vec![0u8; 1024];
+    std::io::Read::read_exact(&mut std::fs::File::open("/dev/urandom").unwrap(), &mut key).unwrap();
+    let key_path = d.join("munge.key");
+    std::fs::write(&key_path, key).unwrap();
+    std::fs::set_permissions(
+        &key_path,
+        std::os::unix::fs::PermissionsExt::from_mode(0o400),
+    )
+    .unwrap();
+    let munged = spawn_daemon(
+        "munged",
+        Command::new(sbin("munged"))
+            .arg("--foreground")
+            .arg("--force")
+            .arg(format!("--socket={}", socket.display()))
+            .arg(format!("--key-file={}", key_path.display()))
+            .arg(format!("--log-file={}", d.join("munged.log").display()))
+            .arg(format!("--pid-file={}", d.join("munged.pid").display()))
+            .arg(format!("--seed-file={}", d.join("munged.seed").display())),
+    );
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !socket.exists() {
+        assert!(
+            Instant::now() < deadline,
+            "munged did not create its socket:\n{}",
+            tail(&d.join("munged.log"))
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    munged
+}
+
+/// Writes the cluster's `slurm.conf` in `d` (this host as its one node, with all its CPUs, on
+/// free loopback ports; MUNGE on `socket`) and returns its path.
+fn write_slurm_conf(d: &Path, socket: &Path) -> PathBuf {
+    let host = String::from_utf8(Command::new("hostname").arg("-s").output().unwrap().stdout)
+        .unwrap()
+        .trim()
+        .to_string();
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let conf = d.join("slurm.conf");
+    let text = format!(
+        "ClusterName=crawlertest\n\
+         SlurmctldHost={host}(127.0.0.1)\n\
+         SlurmctldPort={ctld}\n\
+         SlurmdPort={slurmd}\n\
+         AuthType=auth/munge\n\
+         AuthInfo=socket={socket}\n\
+         CredType=cred/munge\n\
+         SlurmUser=root\n\
+         SlurmdUser=root\n\
+         StateSaveLocation={d}/state\n\
+         SlurmdSpoolDir={d}/spool\n\
+         SlurmctldPidFile={d}/slurmctld.pid\n\
+         SlurmdPidFile={d}/slurmd.pid\n\
+         SlurmctldLogFile={d}/slurmctld.log\n\
+         SlurmdLogFile={d}/slurmd.log\n\
+         ProctrackType=proctrack/linuxproc\n\
+         TaskPlugin=task/none\n\
+         SelectType=select/cons_tres\n\
+         SelectTypeParameters=CR_Core_Memory\n\
+         DefMemPerCPU=100\n\
+         SchedulerType=sched/builtin\n\
+         SchedulerParameters=batch_sched_delay=0,sched_min_interval=0\n\
+         JobAcctGatherType=jobacct_gather/none\n\
+         AccountingStorageType=accounting_storage/none\n\
+         MpiDefault=none\n\
+         ReturnToService=2\n\
+         NodeName={host} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=1000 State=UNKNOWN\n\
+         PartitionName=sweeptest Nodes={host} Default=YES MaxTime=INFINITE State=UP\n",
+        ctld = free_port(),
+        slurmd = free_port(),
+        socket = socket.display(),
+        d = d.display(),
+    );
+    std::fs::write(&conf, text).unwrap();
+    conf
+}
+
 impl Cluster {
     fn logs(&self) -> String {
         ["munged.log", "slurmctld.log", "slurmd.log"]
@@ -78,26 +196,12 @@ impl Cluster {
             .join("\n")
     }
 
+    /// Starts munged, slurmctld and slurmd in a new temporary folder and waits (bounded) until
+    /// the node is idle.
     fn start() -> Cluster {
         // Slurm is a prerequisite installed by scripts/setup.sh (which runs scripts/setup-slurm.sh),
         // never from inside the test: say what is missing and how to get it.
-        let missing: Vec<&str> = [
-            "slurmctld",
-            "slurmd",
-            "sbatch",
-            "squeue",
-            "scancel",
-            "munged",
-        ]
-        .into_iter()
-        .filter(|c| !sbin(c).is_file())
-        .collect();
-        assert!(
-            missing.is_empty(),
-            "this test needs Slurm and MUNGE (missing: {}): run scripts/setup.sh once \
-             (it installs Debian's slurmctld, slurmd, slurm-client and munge; needs root or sudo)",
-            missing.join(", ")
-        );
+        assert_slurm_is_installed();
         let dir = tempfile::Builder::new()
             .prefix("crawler-slurm")
             .tempdir()
@@ -106,92 +210,11 @@ impl Cluster {
         for sub in ["state", "spool"] {
             std::fs::create_dir(d.join(sub)).unwrap();
         }
-        // munge: our own key and socket (the key must be private to its owner)
-        let mut key = vec![0u8; 1024];
-        std::io::Read::read_exact(&mut std::fs::File::open("/dev/urandom").unwrap(), &mut key)
-            .unwrap();
-        let key_path = d.join("munge.key");
-        std::fs::write(&key_path, key).unwrap();
-        std::fs::set_permissions(
-            &key_path,
-            std::os::unix::fs::PermissionsExt::from_mode(0o400),
-        )
-        .unwrap();
         let socket = d.join("munge.socket");
         let mut daemons = Vec::new();
-        let spawn = |name: &'static str, cmd: &mut Command| -> Daemon {
-            let child = cmd
-                .stdin(Stdio::null())
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .unwrap_or_else(|e| {
-                    panic!("cannot start {name}: {e} (is Slurm installed? run scripts/setup.sh)")
-                });
-            Daemon { name, child }
-        };
-        daemons.push(spawn(
-            "munged",
-            Command::new(sbin("munged"))
-                .arg("--foreground")
-                .arg("--force")
-                .arg(format!("--socket={}", socket.display()))
-                .arg(format!("--key-file={}", key_path.display()))
-                .arg(format!("--log-file={}", d.join("munged.log").display()))
-                .arg(format!("--pid-file={}", d.join("munged.pid").display()))
-                .arg(format!("--seed-file={}", d.join("munged.seed").display())),
-        ));
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while !socket.exists() {
-            assert!(
-                Instant::now() < deadline,
-                "munged did not create its socket:\n{}",
-                tail(&d.join("munged.log"))
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let host = String::from_utf8(Command::new("hostname").arg("-s").output().unwrap().stdout)
-            .unwrap()
-            .trim()
-            .to_string();
-        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let conf = d.join("slurm.conf");
-        let text = format!(
-            "ClusterName=crawlertest\n\
-             SlurmctldHost={host}(127.0.0.1)\n\
-             SlurmctldPort={ctld}\n\
-             SlurmdPort={slurmd}\n\
-             AuthType=auth/munge\n\
-             AuthInfo=socket={socket}\n\
-             CredType=cred/munge\n\
-             SlurmUser=root\n\
-             SlurmdUser=root\n\
-             StateSaveLocation={d}/state\n\
-             SlurmdSpoolDir={d}/spool\n\
-             SlurmctldPidFile={d}/slurmctld.pid\n\
-             SlurmdPidFile={d}/slurmd.pid\n\
-             SlurmctldLogFile={d}/slurmctld.log\n\
-             SlurmdLogFile={d}/slurmd.log\n\
-             ProctrackType=proctrack/linuxproc\n\
-             TaskPlugin=task/none\n\
-             SelectType=select/cons_tres\n\
-             SelectTypeParameters=CR_Core_Memory\n\
-             DefMemPerCPU=100\n\
-             SchedulerType=sched/builtin\n\
-             SchedulerParameters=batch_sched_delay=0,sched_min_interval=0\n\
-             JobAcctGatherType=jobacct_gather/none\n\
-             AccountingStorageType=accounting_storage/none\n\
-             MpiDefault=none\n\
-             ReturnToService=2\n\
-             NodeName={host} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=1000 State=UNKNOWN\n\
-             PartitionName=sweeptest Nodes={host} Default=YES MaxTime=INFINITE State=UP\n",
-            ctld = free_port(),
-            slurmd = free_port(),
-            socket = socket.display(),
-            d = d.display(),
-        );
-        std::fs::write(&conf, text).unwrap();
-        daemons.push(spawn(
+        daemons.push(start_munged(d, &socket));
+        let conf = write_slurm_conf(d, &socket);
+        daemons.push(spawn_daemon(
             "slurmctld",
             Command::new(sbin("slurmctld"))
                 .arg("-D")
@@ -199,7 +222,7 @@ impl Cluster {
                 .arg(&conf)
                 .env("SLURM_CONF", &conf),
         ));
-        daemons.push(spawn(
+        daemons.push(spawn_daemon(
             "slurmd",
             Command::new(sbin("slurmd"))
                 .arg("-D")
@@ -212,12 +235,18 @@ impl Cluster {
             dir,
             conf,
         };
+        cluster.wait_until_idle();
+        cluster
+    }
+
+    /// Waits (at most 60 s, polling `sinfo` every 200 ms) until the node is idle.
+    fn wait_until_idle(&self) {
         // wait (bounded) until the node is idle
         let deadline = Instant::now() + Duration::from_secs(60);
         loop {
             let o = Command::new("sinfo")
                 .args(["-h", "-o", "%T"])
-                .env("SLURM_CONF", &cluster.conf)
+                .env("SLURM_CONF", &self.conf)
                 .output();
             if let Ok(o) = &o {
                 if String::from_utf8_lossy(&o.stdout).trim() == "idle" {
@@ -228,11 +257,10 @@ impl Cluster {
                 Instant::now() < deadline,
                 "the test's Slurm cluster did not come up within 60 s (sinfo: {:?}):\n{}",
                 o.map(|o| String::from_utf8_lossy(&o.stdout).into_owned()),
-                cluster.logs()
+                self.logs()
             );
             std::thread::sleep(Duration::from_millis(200));
         }
-        cluster
     }
 
     /// `crawler-sweep ARGS` in `dir` against this cluster, killed (and the test failed, with the
@@ -341,6 +369,21 @@ fn a_slurm_sweep_gives_the_local_sweeps_parquet_bit_for_bit() {
     );
     assert!(local.status.success(), "{}", stderr(&local));
 
+    a_waited_sweep_equals_the_local_one(&cluster, w, p);
+    let plan2 = write_plan(
+        w,
+        "two",
+        &SIX.replace("values = [0.5, 1.0, 1.5]", "values = [0.7, 1.3]"),
+    );
+    let p2 = plan2.to_str().unwrap();
+    a_submitted_sweep_is_collected_as_the_local_one(&cluster, w, p2);
+    a_rerun_submits_nothing(&cluster, w, p2);
+    drop(cluster);
+}
+
+/// `--wait` on the plan `p` in `w`: a job array of three tasks of two points, waited for and
+/// collected, equal to the local sweep's `local.parquet`.
+fn a_waited_sweep_equals_the_local_one(cluster: &Cluster, w: &Path, p: &str) {
     // --wait: a job array of three tasks of two points, waited for and collected
     let o = cluster.sweep(
         w,
@@ -374,14 +417,12 @@ fn a_slurm_sweep_gives_the_local_sweeps_parquet_bit_for_bit() {
         assert_eq!(lines.lines().count(), 2, "task {t} wrote its chunk");
     }
     assert_same_results(&w.join("local.parquet"), &w.join("slurm.parquet"));
+}
 
+/// Without `--wait`, the plan `p2` (four points) in `w`: submitted, left to finish, then
+/// `collect` merges the task files into `two.parquet`, equal to a local sweep of the same plan.
+fn a_submitted_sweep_is_collected_as_the_local_one(cluster: &Cluster, w: &Path, p2: &str) {
     // without --wait: submit, let it finish, then `collect` merges the task files
-    let plan2 = write_plan(
-        w,
-        "two",
-        &SIX.replace("values = [0.5, 1.0, 1.5]", "values = [0.7, 1.3]"),
-    );
-    let p2 = plan2.to_str().unwrap();
     let o = cluster.sweep(
         w,
         &[
@@ -421,6 +462,10 @@ fn a_slurm_sweep_gives_the_local_sweeps_parquet_bit_for_bit() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert_same_results(&w.join("two-local.parquet"), &w.join("two.parquet"));
+}
+
+/// A rerun of the plan `p2` in `w` finds every point stored and submits nothing.
+fn a_rerun_submits_nothing(cluster: &Cluster, w: &Path, p2: &str) {
     // a rerun finds every point stored and submits nothing
     let o = cluster.sweep(
         w,
@@ -443,5 +488,4 @@ fn a_slurm_sweep_gives_the_local_sweeps_parquet_bit_for_bit() {
         stderr(&o)
     );
     assert!(!w.join("slurm2/sub-001").exists(), "nothing submitted");
-    drop(cluster);
 }

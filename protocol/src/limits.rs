@@ -105,77 +105,96 @@ mod tests {
         "x".repeat(MAX_ID_LEN)
     }
 
+    /// A float64 of the largest encoding: no value of a run takes more bytes.
+    const BIG: f64 = -1.234_567_890_123_456_7e300;
+
     #[test]
     fn the_largest_messages_of_a_run_fit_its_limits() {
         for n in [1usize, 2, 17, 256, 4096] {
-            let l = RunLimits::new(n);
-            let big = -1.234_567_890_123_456_7e300;
-            let state = State {
-                v: u16::MAX,
-                step: u64::MAX,
-                time: big,
-                controller: id(),
-                u: vec![big; n],
-                vel: vec![big; n],
-                tension: vec![big; n],
-                stuck: vec![true; n],
-                mean_speed: big,
-                input_power: big,
-                last: true,
-                applied: Some(Applied {
-                    wave: None,
-                    field: Some(vec![big; n]),
-                }),
-            };
-            let s = encode(&state).len();
-            assert!(s <= l.state(), "state {s} > {}", l.state());
-            // an applied wave is smaller than an applied field
-            let wave = State {
-                applied: Some(Applied {
-                    wave: Some(WaveMsg {
-                        f0: big,
-                        k: big,
-                        omega: big,
-                        phase: big,
-                    }),
-                    field: None,
-                }),
-                ..state.clone()
-            };
-            assert!(encode(&wave).len() <= l.state());
-            // the bound is tight: within a header of the real size
-            assert!(
-                l.state() - s < HEADER,
-                "state bound too loose: {s} vs {}",
-                l.state()
-            );
-            let act = Actuation {
-                v: u16::MAX,
-                step: u64::MAX,
-                controller: id(),
+            largest_messages_of_n_cells_fit(n);
+        }
+        let report = largest_report();
+        let r = rmp_serde::to_vec_named(&report).unwrap().len();
+        assert!(r < 2048, "a final report takes {r} bytes");
+        largest_status_fits(report);
+        largest_environment_fits();
+        largest_metrics_and_join_fit();
+    }
+
+    /// Checks the largest `State`, `Actuation` and `Events` of a run of `n` cells against the
+    /// run's limits (and the state's bound for tightness).
+    fn largest_messages_of_n_cells_fit(n: usize) {
+        let l = RunLimits::new(n);
+        let big = BIG;
+        let state = State {
+            v: u16::MAX,
+            step: u64::MAX,
+            time: big,
+            controller: id(),
+            u: vec![big; n],
+            vel: vec![big; n],
+            tension: vec![big; n],
+            stuck: vec![true; n],
+            mean_speed: big,
+            input_power: big,
+            last: true,
+            applied: Some(Applied {
                 wave: None,
                 field: Some(vec![big; n]),
-            };
-            assert!(encode(&act).len() <= l.actuation());
-            let ep = EpisodeMsg {
-                node: u32::MAX,
-                start: big,
-                end: big,
-                duration: big,
-                direction: -1,
-            };
-            let events = Events {
-                v: u16::MAX,
-                step: u64::MAX,
-                time: big,
-                episodes: vec![ep; l.episodes_per_message()],
-            };
-            let e = encode(&events).len();
-            assert!(e <= l.events(), "events {e} > {}", l.events());
-            assert!(l.largest() >= l.state().max(l.events()));
-        }
-        let big = -1.234_567_890_123_456_7e300;
-        let report = FinalReport {
+            }),
+        };
+        let s = encode(&state).len();
+        assert!(s <= l.state(), "state {s} > {}", l.state());
+        // an applied wave is smaller than an applied field
+        let wave = State {
+            applied: Some(Applied {
+                wave: Some(WaveMsg {
+                    f0: big,
+                    k: big,
+                    omega: big,
+                    phase: big,
+                }),
+                field: None,
+            }),
+            ..state.clone()
+        };
+        assert!(encode(&wave).len() <= l.state());
+        // the bound is tight: within a header of the real size
+        assert!(
+            l.state() - s < HEADER,
+            "state bound too loose: {s} vs {}",
+            l.state()
+        );
+        let act = Actuation {
+            v: u16::MAX,
+            step: u64::MAX,
+            controller: id(),
+            wave: None,
+            field: Some(vec![big; n]),
+        };
+        assert!(encode(&act).len() <= l.actuation());
+        let ep = EpisodeMsg {
+            node: u32::MAX,
+            start: big,
+            end: big,
+            duration: big,
+            direction: -1,
+        };
+        let events = Events {
+            v: u16::MAX,
+            step: u64::MAX,
+            time: big,
+            episodes: vec![ep; l.episodes_per_message()],
+        };
+        let e = encode(&events).len();
+        assert!(e <= l.events(), "events {e} > {}", l.events());
+        assert!(l.largest() >= l.state().max(l.events()));
+    }
+
+    /// The largest final report: every text at its limit, every number of the largest encoding.
+    fn largest_report() -> FinalReport {
+        let big = BIG;
+        FinalReport {
             scenario: "s".repeat(MAX_SCENARIO_NAME_LEN),
             values: MetricValues::of(&[
                 (Metric::Velocity, big),
@@ -228,9 +247,11 @@ mod tests {
                 stress_exceeded_at: Some(big),
                 run_time: big,
             }),
-        };
-        let r = rmp_serde::to_vec_named(&report).unwrap().len();
-        assert!(r < 2048, "a final report takes {r} bytes");
+        }
+    }
+
+    /// Checks the largest `Status`, carrying `report`, against the limit of text messages.
+    fn largest_status_fits(report: FinalReport) {
         let status = Status {
             v: u16::MAX,
             role: Role::Controller,
@@ -253,8 +274,13 @@ mod tests {
             report: Some(report),
         };
         assert!(encode(&status).len() <= RunLimits::text_message());
+    }
+
+    /// Checks the largest `Environment` against its limit, and that a client's first session
+    /// reassembles it.
+    fn largest_environment_fits() {
         let n = crate::MAX_ENVIRONMENT_PIECES;
-        let big = -1.234_567_890_123_456_7e300;
+        let big = BIG;
         let env = crate::Environment {
             v: u16::MAX,
             run: id(),
@@ -270,6 +296,10 @@ mod tests {
         assert!(e <= RunLimits::environment(), "environment {e}");
         // every client session, even the first one, reassembles the largest map
         assert!(RunLimits::environment() <= RunLimits::before_model());
+    }
+
+    /// Checks the largest `Metrics` and `Join` against their limits.
+    fn largest_metrics_and_join_fit() {
         let m = Metrics {
             v: u16::MAX,
             step: u64::MAX,

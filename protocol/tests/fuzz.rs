@@ -19,25 +19,12 @@ type Samples = (
     ModelInfo,
 );
 
+/// Cells of the sample run.
+const N: usize = 16;
+
 fn samples() -> Samples {
-    let n = 16;
-    let state = State {
-        v: PROTOCOL_VERSION,
-        step: 7,
-        time: 0.007,
-        controller: "abc".into(),
-        u: vec![0.1; n],
-        vel: vec![0.2; n],
-        tension: vec![0.3; n],
-        stuck: vec![true; n],
-        mean_speed: 0.01,
-        input_power: 0.5,
-        last: false,
-        applied: Some(Applied {
-            wave: None,
-            field: Some(vec![0.4; n]),
-        }),
-    };
+    let n = N;
+    let state = sample_state(n);
     let wave = WaveMsg {
         f0: 0.5,
         k: 6.25,
@@ -70,7 +57,48 @@ fn samples() -> Samples {
             direction: 1,
         }],
     };
-    let metrics = Metrics {
+    let metrics = sample_metrics();
+    let status = Status {
+        v: PROTOCOL_VERSION,
+        role: Role::Plant,
+        id: "x".into(),
+        state: ProcessState::Finished,
+        message: "ok".into(),
+        step: 1,
+        rejected: Rejections::default(),
+        report: Some(sample_report(n)),
+    };
+    let prediction = sample_prediction(wave);
+    let model = ModelInfo::example("r", n as u64, 100);
+    (
+        state, act, field, events, metrics, status, prediction, model,
+    )
+}
+
+/// A valid state of a run of `n` cells, with an applied field.
+fn sample_state(n: usize) -> State {
+    State {
+        v: PROTOCOL_VERSION,
+        step: 7,
+        time: 0.007,
+        controller: "abc".into(),
+        u: vec![0.1; n],
+        vel: vec![0.2; n],
+        tension: vec![0.3; n],
+        stuck: vec![true; n],
+        mean_speed: 0.01,
+        input_power: 0.5,
+        last: false,
+        applied: Some(Applied {
+            wave: None,
+            field: Some(vec![0.4; n]),
+        }),
+    }
+}
+
+/// A valid metrics block with every metric.
+fn sample_metrics() -> Metrics {
+    Metrics {
         v: PROTOCOL_VERSION,
         step: 9,
         block: 2,
@@ -88,70 +116,69 @@ fn samples() -> Samples {
             (Metric::EpisodesPerNodePerPeriod, 1.0),
         ]),
         clock: false,
-    };
-    let status = Status {
-        v: PROTOCOL_VERSION,
-        role: Role::Plant,
-        id: "x".into(),
-        state: ProcessState::Finished,
-        message: "ok".into(),
-        step: 1,
-        rejected: Rejections::default(),
-        report: Some(FinalReport {
-            scenario: "paper".into(),
-            values: MetricValues::of(&[
-                (Metric::Velocity, 0.05),
-                (Metric::Power, 0.1),
-                (Metric::MaxStress, 1000.0),
-                (Metric::MaxStrain, 0.01),
-                (Metric::StuckFraction, 0.2),
-                (Metric::MeanFrictionSelection, 0.1),
-            ]),
-            dissipation: 0.1,
-            identity_velocity: 0.05,
-            momentum_residual: Some(1e-15),
-            events: EpisodeStats {
-                count: 3,
-                per_node_per_period: 1.0,
-                mean_duration: 0.1,
-                min_duration: 0.01,
-            },
-            window: ReportWindow {
-                start: 0.5,
-                end: 1.0,
-                periods: 3.0,
-                steady: true,
-                whole_run: false,
-            },
-            cells: n as u64,
-            dt: 1e-4,
-            step: 1e-3,
-            courant: 1.0,
-            dx: 1.0 / n as f64,
-            cells_per_wavelength: Some(16.0),
-            steps: 1000,
-            macro_steps: 100,
-            t_end: 1.0,
-            state_digest: "0123abcd".into(),
-            task: Some(TaskResult {
-                outcome: Outcome::EnergyExhausted,
-                distance_target: 1.0,
-                distance: 0.2,
-                time_to_distance: None,
-                energy_budget: 20.0,
-                energy_used: 20.0,
-                energy_at_distance: None,
-                energy_exhausted_at: Some(0.9),
-                sigma_max: 1e5,
-                max_stress: 1000.0,
-                time_over_sigma_max: 0.0,
-                stress_tolerance: 0.0,
-                stress_exceeded_at: None,
-                run_time: 1.0,
-            }),
+    }
+}
+
+/// A valid final report of a run of `n` cells, with a task result.
+fn sample_report(n: usize) -> FinalReport {
+    FinalReport {
+        scenario: "paper".into(),
+        values: MetricValues::of(&[
+            (Metric::Velocity, 0.05),
+            (Metric::Power, 0.1),
+            (Metric::MaxStress, 1000.0),
+            (Metric::MaxStrain, 0.01),
+            (Metric::StuckFraction, 0.2),
+            (Metric::MeanFrictionSelection, 0.1),
+        ]),
+        dissipation: 0.1,
+        identity_velocity: 0.05,
+        momentum_residual: Some(1e-15),
+        events: EpisodeStats {
+            count: 3,
+            per_node_per_period: 1.0,
+            mean_duration: 0.1,
+            min_duration: 0.01,
+        },
+        window: ReportWindow {
+            start: 0.5,
+            end: 1.0,
+            periods: 3.0,
+            steady: true,
+            whole_run: false,
+        },
+        cells: n as u64,
+        dt: 1e-4,
+        step: 1e-3,
+        courant: 1.0,
+        dx: 1.0 / n as f64,
+        cells_per_wavelength: Some(16.0),
+        steps: 1000,
+        macro_steps: 100,
+        t_end: 1.0,
+        state_digest: "0123abcd".into(),
+        task: Some(TaskResult {
+            outcome: Outcome::EnergyExhausted,
+            distance_target: 1.0,
+            distance: 0.2,
+            time_to_distance: None,
+            energy_budget: 20.0,
+            energy_used: 20.0,
+            energy_at_distance: None,
+            energy_exhausted_at: Some(0.9),
+            sigma_max: 1e5,
+            max_stress: 1000.0,
+            time_over_sigma_max: 0.0,
+            stress_tolerance: 0.0,
+            stress_exceeded_at: None,
+            run_time: 1.0,
         }),
-    };
-    let prediction = Prediction {
+    }
+}
+
+/// A valid prediction of `wave` by one model.
+fn sample_prediction(wave: WaveMsg) -> Prediction {
+    Prediction {
         v: PROTOCOL_VERSION,
         controller: "abc".into(),
         policy: "wave".into(),
@@ -172,11 +199,7 @@ fn samples() -> Samples {
                 harmonics: vec![(0.01, 0.2)],
             }),
         }],
-    };
-    let model = ModelInfo::example("r", n as u64, 100);
-    (
-        state, act, field, events, metrics, status, prediction, model,
-    )
+    }
 }
 
 fn join() -> Join {

@@ -283,59 +283,47 @@ fn the_recorder_checks_its_inputs_without_creating_anything() {
     assert!(left.is_empty(), "{left:?}");
 }
 
-#[test]
-fn bad_flags_give_clear_errors_and_nonzero_exit() {
-    let check = |exe: &str, args: &[&str], needle: &str| {
-        // without CARGO the launcher uses the binaries beside it rather than running cargo build
-        // (which would rebuild them under the other tests' feet), as in `Proc::spawn`
-        let out = std::process::Command::new(bin(exe))
-            .env_remove("CARGO")
-            .args(args)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{exe} {args:?} should fail");
-        assert!(err.contains(needle), "{exe} {args:?}: {err}");
-    };
-    check("crawler-plant", &["simulate", "--n-f", "2"], "friction.n_f");
-    check(
+/// Bad flags and what each one's error must say: (program, arguments, text of the error).
+const BAD_FLAGS: &[(&str, &[&str], &str)] = &[
+    ("crawler-plant", &["simulate", "--n-f", "2"], "friction.n_f"),
+    (
         "crawler-plant",
         &["simulate", "--eps", "nan"],
         "friction.eps",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["simulate", "--cells", "2"],
         "numerics.cells",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["simulate", "--omega", "0"],
         "actuation.omega",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["simulate", "--t-end", "2"],
         "numerics.t_end",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["simulate", "--scenario", "/nonexistent.toml"],
         "cannot read scenario",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["run", "--endpoint", "tcp/0.0.0.0:7447"],
         "--endpoint",
-    );
-    check("crawler-plant", &["run", "--run-id", "a/b"], "run_id");
-    check(
+    ),
+    ("crawler-plant", &["run", "--run-id", "a/b"], "run_id"),
+    (
         "crawler-plant",
         &["run", "--resume", "/nonexistent.ckpt"],
         "checkpoint",
-    );
+    ),
     // a checkpoint the plant could not write when the run stops (it was said to be valid)
-    check(
+    (
         "crawler-plant",
         &[
             "run",
@@ -345,76 +333,97 @@ fn bad_flags_give_clear_errors_and_nonzero_exit() {
             "/proc/1/nope/x.ckpt",
         ],
         "invalid --checkpoint = /proc/1/nope/x.ckpt: the directory /proc/1 is read-only",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["optimize", "--energy", "-5"],
         "task.energy",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["optimize", "--omega-range", "300,10"],
         "limits.omega",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["optimize", "--energy", "0.000001"],
         "mileage",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["predict", "--model", "magic"],
         "unknown model",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["run", "--policy", "nope", "--wait-timeout", "1"],
         "unknown policy \"nope\"",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["run", "--wait-timeout", "1", "--no-auth"],
         "no plant answered",
-    );
+    ),
     // an authenticated run (the default) without its plant: no credential to read
-    check(
+    (
         "crawler-controller",
         &["run", "--run-id", "nobody-runs-this", "--wait-timeout", "1"],
         "no credential",
-    );
-    check(
+    ),
+    (
         "crawler-controller",
         &["run", "--credential", "/", "--wait-timeout", "1"],
         "--credential",
-    );
-    check("crawler-recorder", &["record", "--every", "0"], "--every");
+    ),
+    ("crawler-recorder", &["record", "--every", "0"], "--every"),
     // a negative number is a value (not a flag the launcher suggests passing on with `--`)
-    check(
+    (
         "crawler",
         &["run", "--t-end", "-1"],
         "--t-end (numerics.t_end) = -1: allowed",
-    );
+    ),
     // times too long for a clock (they panicked turning into a Duration), written as given
-    check(
+    (
         "crawler-recorder",
         &["record", "--idle-timeout", "1e300"],
         "invalid --idle-timeout = 1e300: allowed",
-    );
-    check(
+    ),
+    (
         "crawler",
         &["compare", "--run-timeout", "1e300"],
         "invalid --run-timeout = 1e300: allowed",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["run", "--wait-timeout", "1e300"],
         "invalid --wait-timeout = 1e300: allowed",
-    );
-    check(
+    ),
+    (
         "crawler-plant",
         &["bench", "--seconds", "1e308"],
         "invalid --seconds = 1e308: allowed",
-    );
+    ),
+];
+
+/// Runs `exe args` and checks that it fails with an error that contains `needle`.
+fn fails_with(exe: &str, args: &[&str], needle: &str) {
+    // without CARGO the launcher uses the binaries beside it rather than running cargo build
+    // (which would rebuild them under the other tests' feet), as in `Proc::spawn`
+    let out = std::process::Command::new(bin(exe))
+        .env_remove("CARGO")
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{exe} {args:?} should fail");
+    assert!(err.contains(needle), "{exe} {args:?}: {err}");
+}
+
+#[test]
+fn bad_flags_give_clear_errors_and_nonzero_exit() {
+    for (exe, args, needle) in BAD_FLAGS {
+        fails_with(exe, args, needle);
+    }
 }
 
 #[test]

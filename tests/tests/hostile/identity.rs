@@ -8,8 +8,8 @@ use std::time::{Duration, Instant};
 use zenoh::sample::Locality;
 use zenoh::Wait;
 
-use crawler_e2e::{json, Run};
-use crawler_protocol::{decode, encode, ModelInfo, Role, RunKeys, State};
+use crawler_e2e::{json, Ended, Run};
+use crawler_protocol::{decode, encode, ModelInfo, ProcessId, Role, RunKeys, State};
 use crawler_transport::Access;
 
 use super::payloads::{payloads, spoofed};
@@ -148,15 +148,70 @@ fn without_the_message_key_nobody_can_end_or_steer_the_run() {
     let session = outsider.session().clone();
     let keys = RunKeys::new(&run.id).unwrap();
     // it can read the run's description (a router sees everything): its last step
-    let info: ModelInfo = {
-        let replies = session
-            .get(keys.model())
-            .payload(vec![1u8; 16])
-            .wait()
-            .unwrap();
-        let reply = replies.recv().unwrap();
-        decode(&reply.result().unwrap().payload().to_bytes()).unwrap()
-    };
+    let info = read_the_run_description(&session, &keys);
+    let Spoofer {
+        seen,
+        states,
+        spoofing,
+    } = spoof_every_state(&session, &keys);
+    let controller = run.controller(&[WAVE, &["--json"]].concat());
+    plant.wait_for_stderr("joined run", Duration::from_secs(30));
+    let budgets = Budgets::watch(&[
+        ("plant", &plant),
+        ("controller", &controller),
+        ("recorder", &bridge),
+    ]);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while seen.load(Ordering::Relaxed) < 100 && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    forge_the_plants_end(&session, &keys, &pid, &info);
+    let p = plant.wait(Duration::from_secs(60));
+    let c = controller.wait(Duration::from_secs(30));
+    let b = bridge.wait(Duration::from_secs(30));
+    budgets.check();
+    assert!(p.status.success(), "plant: {}", p.stderr);
+    assert!(
+        c.status.success(),
+        "the controller ended early: {}",
+        c.stderr
+    );
+    assert!(b.status.success(), "bridge: {}", b.stderr);
+    assert_eq!(
+        json(&p.stdout)["state_digest"],
+        simulated("6")["state_digest"],
+        "spoofed actuation changed the trajectory"
+    );
+    drop(states);
+    let spoofed = spoofing.join().unwrap();
+    check_no_spoofed_answer_was_taken(&p, &c, &b, spoofed, &info);
+}
+
+/// The run's description as anyone on the run's keys can read it (a router sees everything):
+/// the plant's answer to a `model` query from `session`.
+fn read_the_run_description(session: &zenoh::Session, keys: &RunKeys) -> ModelInfo {
+    let replies = session
+        .get(keys.model())
+        .payload(vec![1u8; 16])
+        .wait()
+        .unwrap();
+    let reply = replies.recv().unwrap();
+    decode(&reply.result().unwrap().payload().to_bytes()).unwrap()
+}
+
+/// The spoofer of [`spoof_every_state`]: what it saw and its sending thread.
+struct Spoofer {
+    /// The number of states with a controller's id it saw.
+    seen: Arc<AtomicU64>,
+    /// The subscriber to the run's states; dropping it ends the spoofing thread's input.
+    states: zenoh::pubsub::Subscriber<()>,
+    /// The spoofing thread: it answers with the number of spoofed actuations it sent.
+    spoofing: std::thread::JoinHandle<u64>,
+}
+
+/// Answers every state `session` sees that names a controller, from `session`, with spoofed
+/// actuation for its step and the next.
+fn spoof_every_state(session: &zenoh::Session, keys: &RunKeys) -> Spoofer {
     // the spoofer: Actuation(n) and Actuation(n + 1) with the controller's id and another wave,
     // sent as soon as State(n) arrives, with a copy of the state's envelope where the
     // controller's would be (it cannot seal), by a thread (a zenoh callback must not block)
@@ -200,45 +255,43 @@ fn without_the_message_key_nobody_can_end_or_steer_the_run() {
         })
         .wait()
         .unwrap();
-    let controller = run.controller(&[WAVE, &["--json"]].concat());
-    plant.wait_for_stderr("joined run", Duration::from_secs(30));
-    let budgets = Budgets::watch(&[
-        ("plant", &plant),
-        ("controller", &controller),
-        ("recorder", &bridge),
-    ]);
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while seen.load(Ordering::Relaxed) < 100 && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(10));
+    Spoofer {
+        seen,
+        states,
+        spoofing,
     }
+}
+
+/// Forges, from `session` without a seal, the plant's (`pid`) terminal statuses at the run's
+/// last step, mid-run and at step 0, and impossible episodes.
+fn forge_the_plants_end(
+    session: &zenoh::Session,
+    keys: &RunKeys,
+    pid: &ProcessId,
+    info: &ModelInfo,
+) {
     for step in [info.last_step, info.last_step / 2, 0] {
         for state in ["finished", "failed", "stopped"] {
             block(
-                &session,
+                session,
                 &keys.status(Role::Plant),
                 encode(&status(pid.as_str(), state, step)),
             );
         }
     }
-    block(&session, &keys.events(), encode(&forged_events(700)));
-    let p = plant.wait(Duration::from_secs(60));
-    let c = controller.wait(Duration::from_secs(30));
-    let b = bridge.wait(Duration::from_secs(30));
-    budgets.check();
-    assert!(p.status.success(), "plant: {}", p.stderr);
-    assert!(
-        c.status.success(),
-        "the controller ended early: {}",
-        c.stderr
-    );
-    assert!(b.status.success(), "bridge: {}", b.stderr);
-    assert_eq!(
-        json(&p.stdout)["state_digest"],
-        simulated("6")["state_digest"],
-        "spoofed actuation changed the trajectory"
-    );
-    drop(states);
-    let spoofed = spoofing.join().unwrap();
+    block(session, &keys.events(), encode(&forged_events(700)));
+}
+
+/// Checks that the `spoofed` answers were sent and refused by the plant (`p`), that the
+/// controller (`c`) answered every step and took the plant's real summary, and that the
+/// recorder (`b`) refused the forgeries at arrival.
+fn check_no_spoofed_answer_was_taken(
+    p: &Ended,
+    c: &Ended,
+    b: &Ended,
+    spoofed: u64,
+    info: &ModelInfo,
+) {
     assert!(spoofed >= 200, "only {spoofed} spoofed answers were sent");
     // every spoofed answer was refused at arrival (counted as foreign: not from the controller)
     assert!(rejected(&p.stderr, "foreign") >= 200, "{}", p.stderr);

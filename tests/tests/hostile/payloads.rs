@@ -1,5 +1,6 @@
 //! A process holding the credential: every kind of bad payload, sealed, on every key.
 
+use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -8,9 +9,9 @@ use serde::Serialize;
 use zenoh::sample::Locality;
 use zenoh::Wait;
 
-use crawler_e2e::{json, Run};
-use crawler_protocol::{decode, encode, Join, Role, RunKeys, State, PROTOCOL_VERSION};
-use crawler_transport::{Access, Seal};
+use crawler_e2e::{json, Ended, Run};
+use crawler_protocol::{decode, encode, Join, ProcessId, Role, RunKeys, State, PROTOCOL_VERSION};
+use crawler_transport::{Access, Participant, Seal};
 
 use super::{
     bridge_count, controller_refused, forged_events, rejected, simulated, status, Budgets,
@@ -183,9 +184,49 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
     let keys = RunKeys::new(&run.id).unwrap();
     // It learns the controller's id from the states it sees and captures the controller's own
     // actuation (payload, envelope, seal) so it can replay it.
+    let (seen_controller, _states) = learn_the_controller(&session, &keys);
+    let Replaying {
+        captured,
+        acts,
+        replaying,
+    } = capture_and_replay(&session, &keys);
+    std::thread::sleep(Duration::from_millis(300));
+    let me = seen_controller.lock().unwrap().clone();
+    assert!(!me.is_empty(), "the stray session saw no state");
+
+    let mut out = Outlets::of(&insider);
+    let sent_to_plant = attack(
+        &mut out, &insider, &plant_id, &session, &keys, &me, &captured,
+    );
+
+    let p = plant.wait(Duration::from_secs(120));
+    let c = controller.wait(Duration::from_secs(60));
+    let b = bridge.wait(Duration::from_secs(60));
+    budgets.check();
+    drop(acts);
+    let replayed = replaying.join().unwrap();
+    assert!(replayed > 0, "nothing was replayed");
+    assert!(p.status.success(), "plant crashed or failed: {}", p.stderr);
+    assert!(c.status.success(), "controller: {}", c.stderr);
+    assert!(b.status.success(), "bridge: {}", b.stderr);
+    assert_eq!(
+        json(&p.stdout)["state_digest"],
+        simulated("8")["state_digest"],
+        "hostile payloads changed the trajectory"
+    );
+    check_everything_was_counted(&p, &c, &b, &insider, sent_to_plant);
+    check_the_recording(&rrd, &p, &b);
+}
+
+/// Subscribes `session` to the run's states: the shared string holds the controller's id of the
+/// latest state seen (empty until one arrives); keep the subscriber alive while it is needed.
+fn learn_the_controller(
+    session: &zenoh::Session,
+    keys: &RunKeys,
+) -> (Arc<Mutex<String>>, zenoh::pubsub::Subscriber<()>) {
     let seen_controller = Arc::new(Mutex::new(String::new()));
     let s2 = seen_controller.clone();
-    let _states = session
+    let states = session
         .declare_subscriber(keys.state())
         .callback(move |s| {
             if let Ok(st) = decode::<State>(&s.payload().to_bytes()) {
@@ -194,6 +235,22 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         })
         .wait()
         .unwrap();
+    (seen_controller, states)
+}
+
+/// The insider's capture of the controller's actuation and its replaying thread.
+struct Replaying {
+    /// The first 50 actuation samples of the controller, as they arrived.
+    captured: Arc<Mutex<Vec<Captured>>>,
+    /// The subscriber to the actuation key; dropping it ends the replaying thread's input.
+    acts: zenoh::pubsub::Subscriber<()>,
+    /// The replaying thread: it answers with the number of samples it sent again.
+    replaying: std::thread::JoinHandle<u64>,
+}
+
+/// Subscribes `session` to the controller's actuation (remote samples only): keeps the first 50
+/// and sends each of the first 300 again at once.
+fn capture_and_replay(session: &zenoh::Session, keys: &RunKeys) -> Replaying {
     let captured: Arc<Mutex<Vec<Captured>>> = Arc::default();
     let c2 = captured.clone();
     // Each of the controller's answers, sent again at once (by a thread: a zenoh callback must
@@ -209,7 +266,7 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         n
     });
     let replay_tx = Mutex::new(Some(replay_tx));
-    let _acts = session
+    let acts = session
         .declare_subscriber(keys.actuation())
         .allowed_origin(Locality::Remote)
         .callback(move |s| {
@@ -224,11 +281,26 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         })
         .wait()
         .unwrap();
-    std::thread::sleep(Duration::from_millis(300));
-    let me = seen_controller.lock().unwrap().clone();
-    assert!(!me.is_empty(), "the stray session saw no state");
+    Replaying {
+        captured,
+        acts,
+        replaying,
+    }
+}
 
-    let mut out = Outlets::of(&insider);
+/// The insider's attack, sealed in its own name through `out` (its outlets): a request to join,
+/// then three rounds of every bad payload on every key, replays of `captured` from `session`,
+/// forged statuses, a last state and impossible episodes; `me` is the controller's id. Returns
+/// the number of payloads it sent the plant (on the actuation and join keys).
+fn attack(
+    out: &mut Outlets<'_>,
+    insider: &Participant,
+    plant_id: &ProcessId,
+    session: &zenoh::Session,
+    keys: &RunKeys,
+    me: &str,
+    captured: &Mutex<Vec<Captured>>,
+) -> u64 {
     // A second controller asking to join the run (it keeps its controller).
     let join = Join {
         v: PROTOCOL_VERSION,
@@ -249,7 +321,7 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         keys.status(Role::Controller),
         keys.status(Role::Bridge),
     ];
-    let kinds = payloads(&me);
+    let kinds = payloads(me);
     assert!(kinds.len() >= 20);
     let sent_to_plant = AtomicU64::new(0);
     for round in 0..3 {
@@ -264,53 +336,62 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         // replayed actuation of the real controller, later: replays
         let replay: Vec<Captured> = captured.lock().unwrap().clone();
         for c in replay {
-            c.replay(&session);
+            c.replay(session);
         }
-        // well-formed but inconsistent, sealed in the insider's own name: "finished" from
-        // another id, "finished" with the plant's own id in the middle of the run, "failed"
-        // beyond the run's end, a last state from beyond the end, impossible episodes
-        for st in [
-            status("forger", "finished", 8000),
-            status(plant_id.as_str(), "finished", 1000 + round),
-            status(plant_id.as_str(), "failed", 9000),
-            status(plant_id.as_str(), "stopped", u64::MAX),
-        ] {
-            out.put(&keys.status(Role::Plant), encode(&st));
-        }
-        let fake = State {
-            v: PROTOCOL_VERSION,
-            step: 999_999 + round,
-            time: 1.0,
-            controller: me.clone(),
-            u: vec![0.0; 512],
-            vel: vec![0.0; 512],
-            tension: vec![0.0; 512],
-            stuck: vec![false; 512],
-            mean_speed: 0.0,
-            input_power: 0.0,
-            last: true,
-            applied: None,
-        };
-        out.put(&keys.state(), encode(&fake));
-        out.put(&keys.events(), encode(&forged_events(700)));
+        send_inconsistent(out, keys, plant_id, me, round);
         std::thread::sleep(Duration::from_millis(300));
     }
+    sent_to_plant.load(Ordering::Relaxed)
+}
 
-    let p = plant.wait(Duration::from_secs(120));
-    let c = controller.wait(Duration::from_secs(60));
-    let b = bridge.wait(Duration::from_secs(60));
-    budgets.check();
-    drop(_acts);
-    let replayed = replaying.join().unwrap();
-    assert!(replayed > 0, "nothing was replayed");
-    assert!(p.status.success(), "plant crashed or failed: {}", p.stderr);
-    assert!(c.status.success(), "controller: {}", c.stderr);
-    assert!(b.status.success(), "bridge: {}", b.stderr);
-    assert_eq!(
-        json(&p.stdout)["state_digest"],
-        simulated("8")["state_digest"],
-        "hostile payloads changed the trajectory"
-    );
+/// One round (`round` from 0) of well-formed but inconsistent messages, sealed in the insider's
+/// own name through `out`.
+fn send_inconsistent(
+    out: &mut Outlets<'_>,
+    keys: &RunKeys,
+    plant_id: &ProcessId,
+    me: &str,
+    round: u64,
+) {
+    // well-formed but inconsistent, sealed in the insider's own name: "finished" from
+    // another id, "finished" with the plant's own id in the middle of the run, "failed"
+    // beyond the run's end, a last state from beyond the end, impossible episodes
+    for st in [
+        status("forger", "finished", 8000),
+        status(plant_id.as_str(), "finished", 1000 + round),
+        status(plant_id.as_str(), "failed", 9000),
+        status(plant_id.as_str(), "stopped", u64::MAX),
+    ] {
+        out.put(&keys.status(Role::Plant), encode(&st));
+    }
+    let fake = State {
+        v: PROTOCOL_VERSION,
+        step: 999_999 + round,
+        time: 1.0,
+        controller: me.to_string(),
+        u: vec![0.0; 512],
+        vel: vec![0.0; 512],
+        tension: vec![0.0; 512],
+        stuck: vec![false; 512],
+        mean_speed: 0.0,
+        input_power: 0.0,
+        last: true,
+        applied: None,
+    };
+    out.put(&keys.state(), encode(&fake));
+    out.put(&keys.events(), encode(&forged_events(700)));
+}
+
+/// Checks that the plant counted every payload the insider sent it (`sent_to_plant`) and each
+/// kind of rejection, saw the join request, and that the controller (`c`) and the recorder (`b`)
+/// refused the forged messages at arrival.
+fn check_everything_was_counted(
+    p: &Ended,
+    c: &Ended,
+    b: &Ended,
+    insider: &Participant,
+    sent_to_plant: u64,
+) {
     // Every payload it sent the plant was counted: too large ones as malformed, actuation not
     // from the run's controller as foreign, join requests by what is wrong with them (or as
     // overflow, beyond their inbox); the replays as replayed.
@@ -319,9 +400,9 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         .map(|k| rejected(&p.stderr, k))
         .sum();
     assert!(
-        counted >= sent_to_plant.load(Ordering::Relaxed),
+        counted >= sent_to_plant,
         "{counted} counted of {} sent: {}",
-        sent_to_plant.load(Ordering::Relaxed),
+        sent_to_plant,
         p.stderr
     );
     for kind in ["malformed", "foreign", "replayed"] {
@@ -350,7 +431,12 @@ fn hostile_payloads_from_a_credential_holder_change_nothing() {
         "bridge: {}",
         b.stderr
     );
-    let rec = crawler_e2e::read_recording(&rrd).unwrap();
+}
+
+/// Checks that the recording at `rrd` holds every state and the plant's own report (of `p`),
+/// not the forged one; `b` is the recorder.
+fn check_the_recording(rrd: &Path, p: &Ended, b: &Ended) {
+    let rec = crawler_e2e::read_recording(rrd).unwrap();
     let rows = rec.entity("tail/plant").rows;
     assert!(
         rows >= 8001,
