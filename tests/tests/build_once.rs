@@ -65,3 +65,60 @@ fn the_main_job_builds_every_shared_dependency_as_the_tests_do() {
         differ.join("\n")
     );
 }
+
+/// `cargo run -p NAME` needs to know which program to run: a package with several binaries must
+/// name one as `default-run`, or the README's command stops with "could not determine which
+/// binary to run" before building anything.
+#[test]
+fn cargo_run_of_every_program_package_the_readme_names_picks_one_binary() {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .current_dir(repo_root())
+        .args([
+            "metadata",
+            "--no-deps",
+            "--format-version",
+            "1",
+            "--offline",
+        ])
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "cargo metadata failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let readme = std::fs::read_to_string(repo_root().join("README.md")).unwrap();
+    let mut checked = 0;
+    for package in meta["packages"].as_array().expect("packages") {
+        let name = package["name"].as_str().unwrap();
+        if !readme.contains(&format!("cargo run --release -p {name} ")) {
+            continue;
+        }
+        let bins: Vec<&str> = package["targets"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|t| t["kind"].as_array().unwrap().iter().any(|k| k == "bin"))
+            .map(|t| t["name"].as_str().unwrap())
+            .collect();
+        let default_run = package["default_run"].as_str();
+        assert!(
+            bins.len() == 1 || default_run.is_some_and(|d| bins.contains(&d)),
+            "`cargo run -p {name}` cannot choose among the binaries {bins:?} (default-run: {default_run:?})"
+        );
+        if bins.len() > 1 {
+            assert_eq!(
+                default_run,
+                Some(name),
+                "`cargo run -p {name}` runs the program {name}"
+            );
+        }
+        checked += 1;
+    }
+    assert!(
+        checked >= 1,
+        "the README names no `cargo run --release -p` command"
+    );
+}
