@@ -361,3 +361,46 @@ fn the_readme_is_a_front_door_of_at_most_about_300_lines_with_the_two_commands()
         ".ci/run must run the README's set-up step and test command"
     );
 }
+
+/// The main job's printout in the README is the main job's: the in-process run of its policy
+/// (`optimal`) on its scenario (`scenarios/paper.toml`), which the co-simulation equals bit for
+/// bit (tests/tests/one_result.rs), ends in the state digest and the wave the README shows.
+#[test]
+fn the_readmes_main_job_printout_has_the_main_jobs_state_digest_and_wave() {
+    let readme = readme();
+    let block = readme
+        .split("## What the main job prints")
+        .nth(1)
+        .expect("the section on the main job's printout");
+    let shown = |key: &str| -> String {
+        block
+            .lines()
+            .find_map(|l| l.trim().strip_prefix(key))
+            .unwrap_or_else(|| panic!("the README's printout has no line {key:?}"))
+            .trim()
+            .to_string()
+    };
+    let digest = shown("state digest");
+    let scenario = crawler_physics::scenario::Scenario::from_file(
+        &repo_root().join("scenarios/paper.toml"),
+        &crawler_physics::scenario::Overrides::default(),
+    )
+    .unwrap();
+    let run = crawler_policies::in_process::run_named(
+        &scenario,
+        "optimal",
+        &crawler_policies::Params::none(),
+    )
+    .expect("the optimal policy runs in process");
+    assert_eq!(
+        digest, run.report.state_digest,
+        "the README's main job printout is stale: run the main job and paste its printout"
+    );
+    let wave = run.last_wave.expect("the optimal policy commands a wave");
+    let line = shown("scenario paper:");
+    assert!(
+        line.contains(&format!("f0 = {:.4} N", wave.f0)),
+        "README: {line:?}, the run's f0 = {} N",
+        wave.f0
+    );
+}
