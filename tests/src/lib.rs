@@ -53,7 +53,12 @@ pub fn bin(name: &str) -> PathBuf {
 
 /// The repository's root.
 pub fn repo_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    // cargo test sets the variable for the run too: the checkout being tested, even when the test
+    // binary was compiled in another checkout that shares the target dir (cargo hashes path
+    // packages relative to the workspace, so it may reuse that binary)
+    std::env::var_os("CARGO_MANIFEST_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")))
         .parent()
         .expect("workspace root")
         .to_path_buf()
