@@ -141,8 +141,8 @@ def baseline_only(a):
     build()
     new, old = [], []
     with tempfile.TemporaryDirectory() as work:
-        lockstep(a.cells, 3000, False, work)  # warm-up
-        lockstep(a.cells, 3000, False, work, exe_dir=a.baseline)
+        lockstep(a.cells, 6000, False, work)  # warm-up
+        lockstep(a.cells, 6000, False, work, exe_dir=a.baseline)
         for t in range(a.trials):
             for which in ("new", "old") if t % 2 == 0 else ("old", "new"):
                 if which == "new":
