@@ -322,10 +322,15 @@ impl Plant {
 
     /// Tension at half nodes at the current time, N.
     pub fn tension(&self) -> Vec<f64> {
-        let (a, b, _) = self.wave_coefficients(self.internal_time(self.step));
         let mut out = Vec::with_capacity(self.cells());
-        self.solver.tension_into(a, b, &mut out);
+        self.tension_into(&mut out);
         out
+    }
+
+    /// [`Plant::tension`] into `out` (cleared first), reusing its memory.
+    pub fn tension_into(&self, out: &mut Vec<f64>) {
+        let (a, b, _) = self.wave_coefficients(self.internal_time(self.step));
+        self.solver.tension_into(a, b, out);
     }
 
     /// Muscle force at half nodes at the current time, N.

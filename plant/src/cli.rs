@@ -313,7 +313,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if a.convergence {
                 let c = crawler_physics::convergence::estimate(
                     &scenario,
-                    a.max_episodes,
+                    listed(a.json && a.episodes, a.max_episodes),
                     Some(&mut show),
                 )?;
                 bar.finish_and_clear();
@@ -331,7 +331,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let report = simulate(
                 &scenario,
                 SimulateOptions {
-                    max_episodes: a.max_episodes,
+                    max_episodes: listed(a.json && a.episodes, a.max_episodes),
                     progress: Some(&mut show),
                 },
             )?;
@@ -410,6 +410,16 @@ fn report_json<T: serde::Serialize>(report: &T, episodes: bool) -> anyhow::Resul
         drop_episode_lists(&mut value);
     }
     Ok(serde_json::to_string_pretty(&value)?)
+}
+
+/// How many episodes a run keeps in its list: none unless the output shows the list (the counts
+/// and statistics do not depend on it), so a long run does not hold them in memory for nothing.
+fn listed(shown: bool, max_episodes: usize) -> usize {
+    if shown {
+        max_episodes
+    } else {
+        0
+    }
 }
 
 fn drop_episode_lists(value: &mut serde_json::Value) {

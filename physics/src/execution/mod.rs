@@ -8,7 +8,8 @@
 //!   keeps the episode log and writes the report;
 //! - the **controller** ([`Controller`]): called exactly once per communication step, before the
 //!   step, with that step's [`Observation`]; it answers the [`Actuation`] applied over the step
-//!   (a policy in process, or the network in the co-simulation node);
+//!   (a policy in process, or the network in the co-simulation node); [`Hold`], the controller of
+//!   an open-loop run, never acts and is not asked;
 //! - **observers** ([`Observer`]): called after every step with the plant at the step's end
 //!   (progress, the node's publisher, ...); they can watch, not act.
 //!
@@ -80,6 +81,12 @@ pub trait Controller {
 
     /// The actuation over the step that starts at `obs` (`None`: keep what the plant applies).
     fn act(&mut self, obs: &Observation<'_>) -> Result<Option<Actuation>, Self::Stop>;
+
+    /// False for a controller that never acts ([`Hold`]): the execution then neither builds the
+    /// observation nor calls [`Controller::act`] (an open-loop run pays nothing for a controller).
+    fn acts(&self) -> bool {
+        true
+    }
 }
 
 /// A controller that never acts: the plant keeps the actuation it started with.
@@ -91,6 +98,10 @@ impl Controller for Hold {
 
     fn act(&mut self, _: &Observation<'_>) -> Result<Option<Actuation>, Infallible> {
         Ok(None)
+    }
+
+    fn acts(&self) -> bool {
+        false
     }
 }
 
@@ -297,8 +308,7 @@ impl Execution {
     /// The observation of the plant's current state (what the controller is shown).
     pub fn observation(&mut self) -> Observation<'_> {
         let plant = self.slave.plant();
-        self.tension.clear();
-        self.tension.extend(plant.tension());
+        plant.tension_into(&mut self.tension);
         let out = plant.outputs();
         Observation {
             step: plant.macro_step(),
@@ -366,9 +376,13 @@ impl Execution {
         observers: &mut [&mut dyn Observer],
     ) -> Result<(), ExecutionError<C::Stop>> {
         while !self.finished() {
-            let actuation = controller
-                .act(&self.observation())
-                .map_err(ExecutionError::Stopped)?;
+            let actuation = if controller.acts() {
+                controller
+                    .act(&self.observation())
+                    .map_err(ExecutionError::Stopped)?
+            } else {
+                None
+            };
             self.step(actuation.as_ref(), observers)?;
         }
         Ok(())

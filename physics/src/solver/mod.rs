@@ -320,16 +320,35 @@ impl Solver {
     }
 
     /// Tension `T_{i+1/2}` for the current displacement and the muscle coefficients `(a, b)`, N.
+    ///
+    /// Each value is `stiffness * strain(i) + muscle(i, a, b)`, the same operations as those two
+    /// functions (so the same bits), written as one pass over the interior faces and the last face
+    /// apart (no index wrap or boundary test per face).
     pub fn tension_into(&self, a: f64, b: f64, out: &mut Vec<f64>) {
         let n = self.cells();
         out.clear();
-        out.extend((0..n).map(|i| {
-            if self.is_interior_face(i) {
-                self.coef.stiffness * self.strain(i) + self.muscle(i, a, b)
-            } else {
-                0.0
-            }
-        }));
+        if n == 0 {
+            return;
+        }
+        let (k, inv_dx) = (self.coef.stiffness, self.coef.inv_dx);
+        let u = &self.u[..n];
+        let faces = u[..n - 1]
+            .iter()
+            .zip(&u[1..])
+            .zip(&self.sin_table[..n - 1])
+            .zip(&self.cos_table[..n - 1])
+            .zip(&self.field[..n - 1]);
+        out.extend(
+            faces.map(|((((here, next), s), c), g)| {
+                k * ((next - here) * inv_dx) + (s * a + c * b + g)
+            }),
+        );
+        let last = n - 1;
+        out.push(if self.is_interior_face(last) {
+            k * self.strain(last) + self.muscle(last, a, b)
+        } else {
+            0.0
+        });
     }
 
     /// Strain `(u_{i+1} - u_i) / dx` at half node `i` (0 at a free end face).

@@ -189,3 +189,42 @@ fn computing_push_from_a_uniform_n_f_gives_the_bits_of_reading_it() {
     // and a map whose n_F varies reads its push
     assert!(textured(0.05).map.unwrap().uniform_n_f.is_none());
 }
+
+#[test]
+fn the_observed_tension_is_stiffness_times_strain_plus_muscle_on_every_face_bit_for_bit() {
+    for cells in [1, 2, 5, 8, 67] {
+        for boundary in [Boundary::Periodic, Boundary::Free] {
+            let p = paper_with("", cells, boundary);
+            let disc = p.discretisation().unwrap();
+            let mut s = Solver::new(&p, &disc);
+            s.set_wave_number(2.0 * std::f64::consts::PI, disc.dx);
+            for (i, g) in s.field.iter_mut().enumerate() {
+                *g = 0.2 * (i as f64 * 0.7).sin();
+            }
+            for (i, u) in s.u.iter_mut().enumerate() {
+                *u = 1e-3 * (i as f64 * 1.3).cos();
+            }
+            let (a, b) = (0.31, -0.47);
+            let mut out = vec![7.0; 3];
+            s.tension_into(a, b, &mut out);
+            let per_face: Vec<u64> = (0..cells)
+                .map(|i| {
+                    let t = if s.is_interior_face(i) {
+                        s.coef.stiffness * s.strain(i) + s.muscle(i, a, b)
+                    } else {
+                        0.0
+                    };
+                    t.to_bits()
+                })
+                .collect();
+            let got: Vec<u64> = out.iter().map(|t| t.to_bits()).collect();
+            assert_eq!(got, per_face, "{cells} cells, {boundary:?}");
+            let end = out[cells - 1];
+            if boundary == Boundary::Free {
+                assert_eq!(end, 0.0, "a free body's end face carries no tension");
+            } else {
+                assert_ne!(end, 0.0, "a periodic body's last face wraps around to u_0");
+            }
+        }
+    }
+}

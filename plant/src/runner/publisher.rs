@@ -60,8 +60,7 @@ impl<O: Outbox> Publisher<'_, O> {
                 None,
             );
         }
-        self.tension.clear();
-        self.tension.extend(plant.tension());
+        plant.tension_into(&mut self.tension);
         let out = plant.outputs();
         let controller = self
             .shared
