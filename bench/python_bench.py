@@ -2,9 +2,11 @@
 
 Usage: .venv/bin/python bench/python_bench.py [--rounds R] [--cells N] [--t-end S]
 
-1. `softcrawler.simulate` against `crawler-plant simulate --json`, whole run of the same scenario,
-   interleaved (A B A B ...), each a fresh process (the interpreter's start and the import
-   included on the Python side); the median of the pairwise ratios.
+1. `softcrawler.simulate` against `crawler-plant simulate --json --episodes`, whole run of the
+   same scenario with the same output (the report with its list of up to 10 000 stick-slip
+   episodes, which `simulate` returns by default), interleaved (A B A B ...): each a fresh process
+   (the interpreter's start and the import included on the Python side), and `simulate` called in
+   a running interpreter; the medians of the pairwise ratios.
 2. Environment steps per second at the default communication step (frame_skip = 1: one
    communication step per environment step), one environment and a vector of 64, against the
    Rust loop's own rate per crawler (the plant stepped in Rust, no Python in the loop,
@@ -40,7 +42,7 @@ def whole_run(cmd: list[str]) -> float:
 
 def simulate_vs_cli(rounds: int, cells: int, t_end: float) -> None:
     plant = str(TARGET / "release" / "crawler-plant")
-    cli = [plant, "simulate", "--json", "--cells", str(cells), "--t-end", str(t_end)]
+    cli = [plant, "simulate", "--json", "--episodes", "--cells", str(cells), "--t-end", str(t_end)]
     py = [sys.executable, "-c",
           "import softcrawler as sc; print(sc.simulate(sc.Scenario("
           f"cells={cells}, t_end={t_end})).to_dict()['velocity'])"]
@@ -58,7 +60,7 @@ def simulate_vs_cli(rounds: int, cells: int, t_end: float) -> None:
     ratios = [x / y for x, y in zip(a, b)]
     in_ratios = [x / y for x, y in zip(inproc, b)]
     print(f"simulate, {cells} cells, t_end {t_end} s, {rounds} interleaved rounds (medians):")
-    print(f"  crawler-plant simulate --json, whole process:      {statistics.median(b):.3f} s")
+    print(f"  crawler-plant simulate --json --episodes, whole process: {statistics.median(b):.3f} s")
     print(f"  python -c 'softcrawler.simulate(...)', whole process: {statistics.median(a):.3f} s "
           f"ratio {statistics.median(ratios):.3f} (min {min(ratios):.3f}, max {max(ratios):.3f})")
     print(f"  of which python -c 'import softcrawler':            {statistics.median(c):.3f} s")

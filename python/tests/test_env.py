@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from conftest import ROOT
+
 import softcrawler
 from softcrawler.env import PipeFamily, SoftCrawlerEnv, SoftCrawlerVectorEnv
 
@@ -113,3 +115,39 @@ def test_a_trained_agent_drives_the_same_run_in_the_environment_and_in_process(a
     run = softcrawler.run(env.scenario.with_values(task=True), policy)
     assert run.report.state_digest == env.state_digest
     assert run.report.to_dict() == env.report().to_dict()
+
+
+@pytest.mark.parametrize("source", [None, "free-body.toml"])
+@pytest.mark.parametrize("segments", [8, 7, 1])
+def test_the_sensed_strain_is_each_segments_extension_over_its_faces(source, segments):
+    """Segment j's strain: the sum of u[i+1] - u[i] over its faces i, in order, over (faces x dx);
+    a periodic body's last face wraps around to u[0], a free body's last face has no next node.
+    Checked bit for bit against that definition on a plant that has moved."""
+    path = None if source is None else str(ROOT / "scenarios" / source)
+    scenario = softcrawler.Scenario(path, cells=67, t_end=6.0)
+    periodic = source is None
+    plant = softcrawler.Plant(scenario)
+    plant.step(300)
+    obs = plant.observation()
+    told = softcrawler._native.context(scenario._native)["scenario"]
+    sensor = softcrawler._native.Sensor(told, ["strain"], segments)
+    sensor.feed(obs)
+    got = np.frombuffer(sensor.encode(obs), dtype=np.float64)
+    u = [float(x) for x in obs.u]
+    n = len(u)
+    dx = scenario.discretisation["dx"]
+    want = []
+    for j in range(segments):
+        a, b = j * n // segments, (j + 1) * n // segments
+        total, faces = 0.0, 0
+        for i in range(a, b):
+            if i + 1 < n:
+                total += u[i + 1] - u[i]
+            elif periodic:
+                total += u[0] - u[i]
+            else:
+                continue
+            faces += 1
+        want.append(total / (faces * dx) if faces else 0.0)
+    assert [x.hex() for x in got] == [float(x).hex() for x in want]
+    assert np.any(got != 0.0), "the body has moved"

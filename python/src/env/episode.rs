@@ -1,5 +1,6 @@
 //! One crawler on the task: an episode, its reward and its end.
 
+use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -124,13 +125,13 @@ impl EnvCore {
     pub(super) fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         let t = self.run.task().report();
-        d.set_item("time", self.run.plant().time())?;
-        d.set_item("step", self.run.plant().macro_step())?;
-        d.set_item("distance", t.distance)?;
-        d.set_item("energy_used", t.energy_used)?;
-        d.set_item("max_stress", t.max_stress)?;
-        d.set_item("time_over_sigma_max", t.time_over_sigma_max)?;
-        d.set_item("outcome", t.outcome.to_string())?;
+        d.set_item(intern!(py, "time"), self.run.plant().time())?;
+        d.set_item(intern!(py, "step"), self.run.plant().macro_step())?;
+        d.set_item(intern!(py, "distance"), t.distance)?;
+        d.set_item(intern!(py, "energy_used"), t.energy_used)?;
+        d.set_item(intern!(py, "max_stress"), t.max_stress)?;
+        d.set_item(intern!(py, "time_over_sigma_max"), t.time_over_sigma_max)?;
+        d.set_item(intern!(py, "outcome"), t.outcome.to_string())?;
         Ok(d)
     }
 }

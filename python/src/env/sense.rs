@@ -214,17 +214,7 @@ impl Sensor {
                 "strain" => {
                     for j in 0..n {
                         let (a, b) = (self.bounds[j], self.bounds[j + 1]);
-                        let mut sum = 0.0;
-                        let mut count = 0usize;
-                        for i in a..b {
-                            let next = match self.boundary {
-                                Boundary::Periodic => (i + 1) % cells,
-                                Boundary::Free if i + 1 < cells => i + 1,
-                                Boundary::Free => continue,
-                            };
-                            sum += obs.u[next] - obs.u[i];
-                            count += 1;
-                        }
+                        let (sum, count) = segment_extension(obs.u, a, b, self.boundary);
                         out.push(if count > 0 {
                             sum / (count as f64 * self.dx)
                         } else {
@@ -266,6 +256,24 @@ impl Sensor {
             }
         }
     }
+}
+
+/// The sum of `u[i + 1] - u[i]` over the faces `i` in `a..b` (in that order; a periodic body's
+/// last face wraps around to `u[0]`, a free body's has no next node and is left out), m, and the
+/// number of faces summed.
+fn segment_extension(u: &[f64], a: usize, b: usize, boundary: Boundary) -> (f64, usize) {
+    let cells = u.len();
+    let inner = b.min(cells.saturating_sub(1)).max(a);
+    let mut sum = 0.0;
+    for (here, next) in u[a..inner].iter().zip(&u[a + 1..inner + 1]) {
+        sum += next - here;
+    }
+    let mut count = inner - a;
+    if b > inner && boundary == Boundary::Periodic {
+        sum += u[0] - u[cells - 1];
+        count += 1;
+    }
+    (sum, count)
 }
 
 /// The fields observed when none are named.
