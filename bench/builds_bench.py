@@ -3,10 +3,14 @@
 of this build against another (say, the commit before a refactor), interleaved run by run.
 
 Usage: .venv/bin/python bench/builds_bench.py --baseline DIR [--bin-dir DIR] [--rounds 7]
+                                             [--instructions]
 DIR holds the other build's `crawler-plant` and `crawler-sweep` (its target/release). Both builds
 run the same commands, in turn (A B A B ...), so that machine noise hits both alike; the table
 gives medians and the median of the per-pair ratios (this build / baseline). The lockstep rate
-is measured the same way by `bench/cosim_bench.py --baseline DIR`.
+is measured the same way by `bench/cosim_bench.py --baseline DIR`. With --instructions each command
+runs once under valgrind's callgrind and its cost is the instructions it executed (all threads):
+a count that does not move with the machine's load, where the wall times of a shared 2-core VM
+move by 10 to 20 % from run to run.
 
   plant   `crawler-plant simulate` of the stick-slip case (eps = 1, f0 = 0.2 N, alpha = 0.5) at
           4096 cells for 6 s: cells x internal steps / wall time of the whole process; both
@@ -19,6 +23,7 @@ is measured the same way by `bench/cosim_bench.py --baseline DIR`.
 import argparse
 import json
 import os
+import re
 import shutil
 import statistics
 import subprocess
@@ -48,12 +53,25 @@ plant = true
 POINTS = 16
 
 
+# With --instructions: the cost of a command is the number of instructions it executes (all its
+# threads; valgrind's callgrind), not its wall time: the same on a busy or a quiet machine.
+INSTRUCTIONS = False
+
+
 def timed(cmd, **kw):
+    """(cost, stdout) of `cmd`: wall time, s, or with --instructions the instructions executed."""
+    if INSTRUCTIONS:
+        cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *cmd]
     t = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True, **kw)
     dt = time.perf_counter() - t
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed ({p.returncode}):\n{p.stderr[-2000:]}")
+    if INSTRUCTIONS:
+        refs = re.search(r"I\s+refs:\s+([\d,]+)", p.stderr)
+        if refs is None:
+            sys.exit(f"no instruction count in valgrind's output:\n{p.stderr[-2000:]}")
+        return int(refs.group(1).replace(",", "")), p.stdout
     return dt, p.stdout
 
 
@@ -87,7 +105,13 @@ def main():
     ap.add_argument("--bin-dir", default=os.path.join(
         os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target")), "release"))
     ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--instructions", action="store_true",
+                    help="count the instructions each command executes (valgrind's callgrind; "
+                         "one round is enough, the count does not depend on the load): the rates "
+                         "are then per instruction, not per second")
     a = ap.parse_args()
+    global INSTRUCTIONS
+    INSTRUCTIONS = a.instructions
     plan_dir = tempfile.mkdtemp(prefix="builds-plan-")
     plan = os.path.join(plan_dir, "builds.toml")
     with open(plan, "w") as f:
@@ -108,7 +132,8 @@ def main():
     print(f"| what | this build | baseline | this / baseline (median of {a.rounds} pairs) "
           "| same result |")
     print("| --- | ---: | ---: | ---: | --- |")
-    for what, unit in (("plant", "cell updates/s"), ("sweep", "points/s")):
+    per = "instruction" if a.instructions else "s"
+    for what, unit in (("plant", f"cell updates/{per}"), ("sweep", f"points/{per}")):
         this, base = rates[(what, "this")], rates[(what, "baseline")]
         ratio = statistics.median(x / y for x, y in zip(this, base))
         same = checks[(what, "this")] == checks[(what, "baseline")]

@@ -1,6 +1,7 @@
 """The Python package's speed, side by side with the Rust programs (docs/python.md, Performance).
 
 Usage: .venv/bin/python bench/python_bench.py [--rounds R] [--cells N] [--t-end S]
+       .venv/bin/python bench/python_bench.py --instructions [--cells N] [--t-end S]
 
 1. `softcrawler.simulate` against `crawler-plant simulate --json --episodes`, whole run of the
    same scenario with the same output (the report with its list of up to 10 000 stick-slip
@@ -8,10 +9,11 @@ Usage: .venv/bin/python bench/python_bench.py [--rounds R] [--cells N] [--t-end 
    (the interpreter's start and the import included on the Python side), and `simulate` called in
    a running interpreter; the medians of the pairwise ratios.
 2. Environment steps per second at the default communication step (frame_skip = 1: one
-   communication step per environment step), one environment and a vector of 64, against the
-   Rust loop's own rate per crawler (the plant stepped in Rust, no Python in the loop,
-   `Plant.step(n)`); the actions are fixed arrays, so the figures are the package's overhead, not an
-   agent's.
+   communication step per environment step): one environment against the Rust loop's rate for
+   one crawler (the plant stepped in Rust, no Python in the loop, `Plant.step(n)`), and a vector of
+   64 against the Rust loop on as many threads as the machine has cores (each stepping its own
+   plant), so both sides get the cores the machine really gives; the actions are fixed arrays, so
+   the figures are the package's overhead, not an agent's.
 Needs the package installed (scripts/setup-python.sh) and target/release/crawler-plant.
 """
 
@@ -20,9 +22,11 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
+import re
 import statistics
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -69,16 +73,51 @@ def simulate_vs_cli(rounds: int, cells: int, t_end: float) -> None:
           f"max {max(in_ratios):.3f})")
 
 
-def rust_rate(cells: int, seconds: float) -> float:
-    """Communication steps per second of one plant stepped in Rust (no Python per step)."""
+def instructions(cmd: list[str]) -> int:
+    """Instructions `cmd` executes, all threads (valgrind's callgrind)."""
+    p = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *cmd],
+                       capture_output=True, text=True, check=True)
+    return int(re.search(r"I\s+refs:\s+([\d,]+)", p.stderr).group(1).replace(",", ""))
+
+
+def simulate_instructions(cells: int, t_end: float) -> None:
+    """`simulate` against the program by instruction counts: the same on a busy or a quiet
+    machine. The Python side's interpreter start, import and scenario are counted apart (the same
+    command without the `simulate` call) and taken off."""
+    plant = str(TARGET / "release" / "crawler-plant")
+    cli = instructions([plant, "simulate", "--json", "--episodes", "--cells", str(cells),
+                        "--t-end", str(t_end)])
+    setup = (f"import softcrawler as sc; s = sc.Scenario(cells={cells}, t_end={t_end})")
+    py = instructions([sys.executable, "-c", setup + "; sc.simulate(s)"])
+    base = instructions([sys.executable, "-c", setup])
+    print(f"simulate by instructions (callgrind), {cells} cells, t_end {t_end} s:")
+    print(f"  crawler-plant simulate --json --episodes, whole process: {cli / 1e6:10.1f} M")
+    print(f"  python -c '...simulate(s)', whole process:              {py / 1e6:10.1f} M")
+    print(f"  of which the interpreter, the import and the scenario:  {base / 1e6:10.1f} M")
+    print(f"  simulate itself: {(py - base) / 1e6:.1f} M = x {(py - base) / cli:.3f} the program")
+
+
+def rust_rate(cells: int, seconds: float, threads: int = 1) -> float:
+    """Communication steps per second of plants stepped in Rust (no Python per step), summed over
+    `threads` threads that each step their own plant (`Plant.step` releases the GIL, so they run
+    on as many cores as the machine gives)."""
     s = softcrawler.Scenario(cells=cells, t_end=1e4)
-    p = softcrawler.Plant(s)
-    p.step(200)
-    n = 0
+    plants = [softcrawler.Plant(s) for _ in range(threads)]
+    for p in plants:
+        p.step(200)
+    counts = [0] * threads
     t0 = time.perf_counter()
-    while time.perf_counter() - t0 < seconds:
-        n += p.step(500)
-    return n / (time.perf_counter() - t0)
+
+    def work(i: int) -> None:
+        while time.perf_counter() - t0 < seconds:
+            counts[i] += plants[i].step(500)
+
+    pool = [threading.Thread(target=work, args=(i,)) for i in range(threads)]
+    for t in pool:
+        t.start()
+    for t in pool:
+        t.join()
+    return sum(counts) / (time.perf_counter() - t0)
 
 
 def env_rate(num: int, cells: int, seconds: float, frame_skip: int = 1) -> float:
@@ -123,28 +162,42 @@ def main() -> int:
     ap.add_argument("--cells", type=int, default=512)
     ap.add_argument("--t-end", type=float, default=20.0)
     ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--env-rounds", type=int, default=3,
+                    help="interleaved rounds of the step-rate measurements")
     ap.add_argument("--frame-skip", type=int, default=1,
                     help="communication steps per environment step (1: every step)")
+    ap.add_argument("--instructions", action="store_true",
+                    help="only compare simulate with the program by instruction counts "
+                         "(valgrind's callgrind), once")
     args = ap.parse_args()
+    if args.instructions:
+        simulate_instructions(args.cells, args.t_end)
+        return 0
     print(f"python {sys.version.split()[0]}, softcrawler {softcrawler.__version__}, "
           f"{os.cpu_count()} cores (shared)")
     simulate_vs_cli(args.rounds, args.cells, args.t_end)
     # interleaved: Rust loop, one env, vector of 64, repeated; medians
-    rust, one, vec = [], [], []
-    for _ in range(3):
+    cores = os.cpu_count() or 1
+    rust, rust_all, one, vec = [], [], [], []
+    for _ in range(args.env_rounds):
         rust.append(rust_rate(args.cells, args.seconds))
         one.append(env_rate(1, args.cells, args.seconds, args.frame_skip))
+        rust_all.append(rust_rate(args.cells, args.seconds, threads=cores))
         vec.append(env_rate(64, args.cells, args.seconds, args.frame_skip))
-    r, o, v = (statistics.median(x) for x in (rust, one, vec))
-    cores = os.cpu_count() or 1
+    r, ra, o, v = (statistics.median(x) for x in (rust, rust_all, one, vec))
+    one_ratios = [x / y for x, y in zip(one, rust)]
+    vec_ratios = [x / y for x, y in zip(vec, rust_all)]
     print(f"communication steps per second, {args.cells} cells, frame_skip {args.frame_skip}, "
-          "median of 3 interleaved rounds:")
-    print(f"  Rust loop, one crawler (Plant.step(500)):   {r:10.0f}")
-    print(f"  one environment (env.step per step):        {o:10.0f}  "
-          f"Python's overhead per step {100 * (r / o - 1):.1f} %")
-    print(f"  vector of 64 (vec.step per step), total:    {v:10.0f}  "
-          f"per crawler and core {v / min(cores, 64):.0f} = {100 * v / min(cores, 64) / r:.1f} % "
-          f"of the Rust loop's rate")
+          f"medians of {args.env_rounds} interleaved rounds:")
+    print(f"  Rust loop, one crawler (Plant.step(500)):           {r:10.0f}")
+    print(f"  one environment (env.step per step):                {o:10.0f}  "
+          f"{100 * statistics.median(one_ratios):.1f} % of the Rust loop's rate "
+          f"(Python's overhead per step {100 * (1 / statistics.median(one_ratios) - 1):.1f} %)")
+    print(f"  Rust loop, {cores} crawlers on {cores} threads, in all:        {ra:10.0f}  "
+          f"{ra / r:.2f}x one crawler's rate")
+    print(f"  vector of 64 (vec.step per step), in all:           {v:10.0f}  "
+          f"{100 * statistics.median(vec_ratios):.1f} % of the Rust loop's rate on {cores} "
+          f"threads (per-round ratios {min(vec_ratios):.2f} to {max(vec_ratios):.2f})")
     return 0
 
 
