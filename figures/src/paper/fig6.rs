@@ -86,18 +86,30 @@ pub(super) fn fig6(
             (20, 15),
         )?;
         let panels = body.split_evenly((2, 2));
-        for (col, (mname, model, _)) in models().iter().enumerate() {
-            let n = if matches!(model, ModelChoice::Paper) {
-                opts.plane_points
-            } else {
-                opts.plane_points_improved
-            };
-            let grid = PlaneGrid::new(&lim, n);
-            let plane_a = unconstrained_plane(mname, model, &base, &grid, &mut csv_a)?;
-            draw_plane(&panels[col], &plane_a)?;
+        let grids: Vec<PlaneGrid> = models()
+            .iter()
+            .map(|(_, model, _)| {
+                let n = if matches!(model, ModelChoice::Paper) {
+                    opts.plane_points
+                } else {
+                    opts.plane_points_improved
+                };
+                PlaneGrid::new(&lim, n)
+            })
+            .collect();
+        let (mut row_a, mut row_b) = (Vec::new(), Vec::new());
+        for ((mname, model, _), grid) in models().iter().zip(&grids) {
+            row_a.push(unconstrained_plane(mname, model, &base, grid, &mut csv_a)?);
             let wave_speed = base.body.wave_speed();
-            let plane_b = optimal_plane(mname, model, &problem, &grid, wave_speed, &mut csv_b)?;
-            draw_plane(&panels[2 + col], &plane_b)?;
+            row_b.push(optimal_plane(
+                mname, model, &problem, grid, wave_speed, &mut csv_b,
+            )?);
+        }
+        for (row, planes) in [&mut row_a, &mut row_b].into_iter().enumerate() {
+            share_colour_range(planes);
+            for (col, plane) in planes.iter().enumerate() {
+                draw_plane(&panels[2 * row + col], plane)?;
+            }
         }
         root.present()?;
     }
@@ -109,6 +121,27 @@ pub(super) fn fig6(
     }
     files.push(png);
     Ok(files)
+}
+
+/// Gives the panels of one row (the two models) one colour range, m/s: the union of their own
+/// ranges, so that a colour means the same speed in both. A panel without a value (a failed
+/// optimisation) keeps its own.
+fn share_colour_range(planes: &mut [Plane<'_>]) {
+    let with_values = |p: &Plane<'_>| {
+        p.range.0.is_finite()
+            && p.range.1.is_finite()
+            && p.cells.iter().any(|c| matches!(c, PlaneCell::Value(_)))
+    };
+    let shared = planes
+        .iter()
+        .filter(|p| with_values(p))
+        .map(|p| p.range)
+        .reduce(|(lo, hi), (l, h)| (lo.min(l), hi.max(h)));
+    if let Some(range) = shared {
+        for p in planes.iter_mut().filter(|p| with_values(p)) {
+            p.range = range;
+        }
+    }
 }
 
 /// The omega-k grid of one model's Fig. 6 panels.
@@ -434,5 +467,47 @@ mod tests {
         assert_eq!((w, k), (r.optimum.omega, r.optimum.k));
         assert!(label.starts_with("optimum: V = "), "{label}");
         assert_eq!(plane.range, (lo, hi));
+    }
+}
+
+#[cfg(test)]
+mod shared_range_tests {
+    use super::*;
+
+    fn plane(range: (f64, f64), cells: Vec<PlaneCell>) -> Plane<'static> {
+        Plane {
+            title: String::new(),
+            omegas: &[1.0, 2.0],
+            ks: &[1.0],
+            cells,
+            categories: Vec::new(),
+            mark: None,
+            wave_speed: 1.0,
+            range,
+            regions: None,
+        }
+    }
+
+    #[test]
+    fn the_two_models_panels_of_a_row_share_the_union_of_their_colour_ranges() {
+        let v = |x| PlaneCell::Value(x);
+        let mut row = vec![
+            plane((0.039, 0.0499), vec![v(0.04), v(0.0499)]),
+            plane((0.040, 0.0501), vec![v(0.041), v(0.0501)]),
+        ];
+        share_colour_range(&mut row);
+        assert_eq!(row[0].range, (0.039, 0.0501));
+        assert_eq!(row[1].range, (0.039, 0.0501));
+    }
+
+    #[test]
+    fn a_panel_without_values_keeps_its_own_range_and_does_not_widen_the_other() {
+        let mut row = vec![
+            plane((0.039, 0.0499), vec![PlaneCell::Value(0.045)]),
+            plane((0.0, 1.0), Vec::new()),
+        ];
+        share_colour_range(&mut row);
+        assert_eq!(row[0].range, (0.039, 0.0499));
+        assert_eq!(row[1].range, (0.0, 1.0));
     }
 }

@@ -6,8 +6,9 @@
 //! backward motion are shaded and named in the legend.
 //!
 //! Fig. 6: over the omega-k plane, (a) V at f0 = 1.5 N (the paper's unconstrained Fig. 6(a)) and
-//! (b) the constrained optimal V with f0 chosen per cell by the optimiser (Fig. 6(b)), each with a
-//! colour bar over its own range (so that the dependence of (b) on k alone shows as horizontal
+//! (b) the constrained optimal V with f0 chosen per cell by the optimiser (Fig. 6(b)), each row's
+//! two panels (the two models) with one colour range over that row's speeds (so that a colour
+//! means the same speed in both models, and the dependence of (b) on k alone shows as horizontal
 //! bands), the resonance line `omega = k c`, the fastest or optimal point marked, and every cell
 //! without a value coloured by its cause, named in the legend.
 //!

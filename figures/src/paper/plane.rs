@@ -268,15 +268,15 @@ fn draw_colour_bar(
         .margin_right(8)
         .y_label_area_size(120)
         .build_cartesian_2d(0.0..1.0, vmin..vmax)?;
-    // each panel has its own range: say how wide it is, so that a narrow one is not read as a
-    // strong dependence
+    // each row of panels has its own range: say how wide it is, so that a narrow one is not read
+    // as a strong dependence
     let span = if vmax.abs() > 0.0 {
         format!(
-            "V [m/s], this panel's range ({:.1} % of its top)",
+            "V [m/s], this row's range ({:.1} % of its top)",
             100.0 * (vmax - vmin) / vmax.abs()
         )
     } else {
-        "V [m/s], this panel's range".to_string()
+        "V [m/s], this row's range".to_string()
     };
     chart
         .configure_mesh()
