@@ -23,13 +23,14 @@ move by 10 to 20 % from run to run.
 import argparse
 import json
 import os
-import re
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+
+from callgrind import instructions
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -61,17 +62,12 @@ INSTRUCTIONS = False
 def timed(cmd, **kw):
     """(cost, stdout) of `cmd`: wall time, s, or with --instructions the instructions executed."""
     if INSTRUCTIONS:
-        cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *cmd]
+        return instructions(cmd, **kw)
     t = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True, **kw)
     dt = time.perf_counter() - t
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed ({p.returncode}):\n{p.stderr[-2000:]}")
-    if INSTRUCTIONS:
-        refs = re.search(r"I\s+refs:\s+([\d,]+)", p.stderr)
-        if refs is None:
-            sys.exit(f"no instruction count in valgrind's output:\n{p.stderr[-2000:]}")
-        return int(refs.group(1).replace(",", "")), p.stdout
     return dt, p.stdout
 
 

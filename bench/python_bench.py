@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
-import re
 import statistics
 import subprocess
 import sys
@@ -32,6 +31,7 @@ import time
 import numpy as np
 
 import softcrawler
+from callgrind import instructions
 from softcrawler.env import SoftCrawlerEnv, SoftCrawlerVectorEnv
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -73,23 +73,16 @@ def simulate_vs_cli(rounds: int, cells: int, t_end: float) -> None:
           f"max {max(in_ratios):.3f})")
 
 
-def instructions(cmd: list[str]) -> int:
-    """Instructions `cmd` executes, all threads (valgrind's callgrind)."""
-    p = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *cmd],
-                       capture_output=True, text=True, check=True)
-    return int(re.search(r"I\s+refs:\s+([\d,]+)", p.stderr).group(1).replace(",", ""))
-
-
 def simulate_instructions(cells: int, t_end: float) -> None:
     """`simulate` against the program by instruction counts: the same on a busy or a quiet
     machine. The Python side's interpreter start, import and scenario are counted apart (the same
     command without the `simulate` call) and taken off."""
     plant = str(TARGET / "release" / "crawler-plant")
-    cli = instructions([plant, "simulate", "--json", "--episodes", "--cells", str(cells),
-                        "--t-end", str(t_end)])
+    cli, _ = instructions([plant, "simulate", "--json", "--episodes", "--cells", str(cells),
+                           "--t-end", str(t_end)])
     setup = (f"import softcrawler as sc; s = sc.Scenario(cells={cells}, t_end={t_end})")
-    py = instructions([sys.executable, "-c", setup + "; sc.simulate(s)"])
-    base = instructions([sys.executable, "-c", setup])
+    py, _ = instructions([sys.executable, "-c", setup + "; sc.simulate(s)"])
+    base, _ = instructions([sys.executable, "-c", setup])
     print(f"simulate by instructions (callgrind), {cells} cells, t_end {t_end} s:")
     print(f"  crawler-plant simulate --json --episodes, whole process: {cli / 1e6:10.1f} M")
     print(f"  python -c '...simulate(s)', whole process:              {py / 1e6:10.1f} M")
