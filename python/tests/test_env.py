@@ -151,3 +151,36 @@ def test_the_sensed_strain_is_each_segments_extension_over_its_faces(source, seg
         want.append(total / (faces * dx) if faces else 0.0)
     assert [x.hex() for x in got] == [float(x).hex() for x in want]
     assert np.any(got != 0.0), "the body has moved"
+
+
+@pytest.mark.parametrize("segments", [8, 7, 5, 1])
+def test_the_sensed_stress_and_velocity_are_each_segments_mean_summed_in_order(segments):
+    """Segment j's stress: the sum of the tension over its cells, in order, over the count and
+    over A_c sigma_max; its velocity: the same mean of the node velocities. Bit for bit against
+    that definition, with segments of unequal lengths (67 cells) on a plant that has moved."""
+    scenario = softcrawler.Scenario(cells=67, t_end=6.0)
+    plant = softcrawler.Plant(scenario)
+    plant.step(300)
+    obs = plant.observation()
+    told = softcrawler._native.context(scenario._native)["scenario"]
+    sensor = softcrawler._native.Sensor(told, ["stress", "velocity"], segments)
+    sensor.feed(obs)
+    got = np.frombuffer(sensor.encode(obs), dtype=np.float64)
+    body, task = scenario.to_dict()["body"], scenario.to_dict()["task"]
+    scale = 1.0 / (body["area"] * task["sigma_max"])
+    n = len(obs.u)
+
+    def means(values, scale=None):
+        out = []
+        for j in range(segments):
+            a, b = j * n // segments, (j + 1) * n // segments
+            total = -0.0
+            for x in values[a:b]:
+                total += float(x)
+            m = total / (b - a)
+            out.append(m * scale if scale is not None else m)
+        return out
+
+    want = means(obs.tension, scale) + means(obs.vel)
+    assert [x.hex() for x in got] == [float(x).hex() for x in want]
+    assert np.all(got != 0.0), "the body has moved"

@@ -33,6 +33,8 @@ pub(super) struct EnvCore {
     pub(super) distance: f64,
     pub(super) over_stress: f64,
     pub(super) done: bool,
+    /// The observation's buffer (reused).
+    pub(super) scratch: Vec<f64>,
 }
 
 /// What one environment step gives.
@@ -44,8 +46,10 @@ pub(super) struct StepResult {
 }
 
 pub(super) fn sensed(run: &mut Execution, sensor: &Sensor, out: &mut Vec<f64>) {
+    // the sensor's first observation is the task's start: the same mean, the same subtraction
+    let travelled = run.task().distance;
     let obs = run.observation();
-    sensor.encode(&obs, out);
+    sensor.encode(&obs, Some(travelled), out);
 }
 
 impl EnvCore {
@@ -68,6 +72,7 @@ impl EnvCore {
             distance: 0.0,
             over_stress: 0.0,
             done: false,
+            scratch: Vec::new(),
         };
         let obs = env.run.observation();
         env.sensor.feed(obs.step, obs.u, obs.input_power);
@@ -76,6 +81,13 @@ impl EnvCore {
 
     pub(super) fn observe(&mut self, out: &mut Vec<f64>) {
         sensed(&mut self.run, &self.sensor, out);
+    }
+
+    /// The observation into `row` (as long as the sensor's dimension).
+    pub(super) fn observe_into(&mut self, row: &mut [f64]) {
+        self.scratch.clear();
+        sensed(&mut self.run, &self.sensor, &mut self.scratch);
+        row.copy_from_slice(&self.scratch);
     }
 
     /// Applies `action` and takes `frame_skip` communication steps (fewer if the run ends),

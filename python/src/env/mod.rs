@@ -202,33 +202,30 @@ impl PyVecCore {
         }
         let obs_dim = self.envs[0].sensor.dim();
         let envs = &mut self.envs;
-        let results: Vec<Result<(StepResult, Vec<f64>), String>> = py.detach(|| {
+        let mut obs = vec![0.0; n * obs_dim];
+        let mut results = vec![StepResult::default(); n];
+        let failed: Option<(usize, String)> = py.detach(|| {
             envs.par_iter_mut()
-                .zip(a.par_chunks(dim))
-                .zip(mask.par_iter())
-                .map(|((env, act), &m)| {
-                    let r = if m != 0 {
-                        env.step(act)?
-                    } else {
-                        StepResult::default()
-                    };
-                    let mut obs = Vec::with_capacity(obs_dim);
-                    env.observe(&mut obs);
-                    Ok((r, obs))
+                .zip(obs.par_chunks_mut(obs_dim))
+                .zip(results.par_iter_mut())
+                .zip(a.par_chunks(dim).zip(mask.par_iter()))
+                .enumerate()
+                .map(|(i, (((env, row), result), (act, &m)))| {
+                    if m != 0 {
+                        *result = env.step(act).map_err(|e| (i, e))?;
+                    }
+                    env.observe_into(row);
+                    Ok(())
                 })
-                .collect()
+                .collect::<Result<(), (usize, String)>>()
+                .err()
         });
-        let mut obs = Vec::with_capacity(n * obs_dim);
-        let mut rewards = Vec::with_capacity(n);
-        let mut term = Vec::with_capacity(n);
-        let mut trunc = Vec::with_capacity(n);
-        for (i, r) in results.into_iter().enumerate() {
-            let (r, o) = r.map_err(|e| option_error(py, &format!("crawler {i}: {e}")))?;
-            obs.extend(o);
-            rewards.push(r.reward);
-            term.push(r.terminated);
-            trunc.push(r.truncated);
+        if let Some((i, e)) = failed {
+            return Err(option_error(py, &format!("crawler {i}: {e}")));
         }
+        let rewards: Vec<f64> = results.iter().map(|r| r.reward).collect();
+        let term: Vec<bool> = results.iter().map(|r| r.terminated).collect();
+        let trunc: Vec<bool> = results.iter().map(|r| r.truncated).collect();
         (
             f64_bytes(py, &obs),
             f64_bytes(py, &rewards),
@@ -305,7 +302,7 @@ impl PySensor {
     /// The sensed numbers for `obs` (fed already), as float64 bytes.
     fn encode<'py>(&mut self, py: Python<'py>, obs: &PyObservation) -> Bound<'py, PyBytes> {
         self.out.clear();
-        self.sensor.encode(&obs.view(), &mut self.out);
+        self.sensor.encode(&obs.view(), None, &mut self.out);
         f64_bytes(py, &self.out)
     }
 

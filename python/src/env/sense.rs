@@ -204,22 +204,40 @@ impl Sensor {
         }
     }
 
-    /// The observation's numbers for the state `obs` (fed already).
-    pub fn encode(&self, obs: &Observation<'_>, out: &mut Vec<f64>) {
+    /// The observation's numbers for the state `obs` (fed already). `travelled`: the distance
+    /// the centre of mass has travelled since the first observation fed, m, when the caller
+    /// has it (the task's, the same subtraction of the same means), else computed from `obs.u`.
+    pub fn encode(&self, obs: &Observation<'_>, travelled: Option<f64>, out: &mut Vec<f64>) {
         let n = self.bounds.len() - 1;
         let (start_step, start_pos, _) = self.start.unwrap_or((obs.step, 0.0, 0.0));
         let cells = obs.u.len();
         for &f in &self.fields {
+            let first = out.len();
             match FIELDS[f].0 {
                 "strain" => {
-                    for j in 0..n {
+                    let u = obs.u;
+                    let last = cells.saturating_sub(1);
+                    out.resize(first + n, 0.0);
+                    // the faces i in a..b with a next node (a free body's last has none)
+                    let faces = |j: usize| {
+                        let a = self.bounds[j];
+                        (a, self.bounds[j + 1].min(last).max(a))
+                    };
+                    segment_sums::<true>(u, faces, 0.0, &mut out[first..]);
+                    for (j, sum) in out[first..].iter_mut().enumerate() {
                         let (a, b) = (self.bounds[j], self.bounds[j + 1]);
-                        let (sum, count) = segment_extension(obs.u, a, b, self.boundary);
-                        out.push(if count > 0 {
-                            sum / (count as f64 * self.dx)
+                        let inner = b.min(last).max(a);
+                        let mut count = inner - a;
+                        if b > inner && self.boundary == Boundary::Periodic {
+                            // a periodic body's last face wraps around to u[0]
+                            *sum += u[0] - u[cells - 1];
+                            count += 1;
+                        }
+                        *sum = if count > 0 {
+                            *sum / (count as f64 * self.dx)
                         } else {
                             0.0
-                        });
+                        };
                     }
                 }
                 "stuck" => {
@@ -231,23 +249,15 @@ impl Sensor {
                 }
                 "stress" => {
                     let scale = 1.0 / (self.area * self.sigma_max);
-                    for j in 0..n {
-                        let (a, b) = (self.bounds[j], self.bounds[j + 1]);
-                        let t: f64 = obs.tension[a..b].iter().sum();
-                        out.push(t / (b - a) as f64 * scale);
-                    }
+                    self.means(obs.tension, out);
+                    out[first..].iter_mut().for_each(|m| *m *= scale);
                 }
-                "velocity" => {
-                    for j in 0..n {
-                        let (a, b) = (self.bounds[j], self.bounds[j + 1]);
-                        let v: f64 = obs.vel[a..b].iter().sum();
-                        out.push(v / (b - a) as f64);
-                    }
-                }
+                "velocity" => self.means(obs.vel, out),
                 "speed" => out.push(obs.mean_speed),
                 "progress" => {
-                    let mean = obs.u.iter().sum::<f64>() / cells as f64;
-                    out.push((mean - start_pos) / self.distance_target);
+                    let d = travelled
+                        .unwrap_or_else(|| obs.u.iter().sum::<f64>() / cells as f64 - start_pos);
+                    out.push(d / self.distance_target);
                 }
                 "energy" => out.push(self.energy / self.energy_budget),
                 "power" => out.push(obs.input_power),
@@ -256,24 +266,55 @@ impl Sensor {
             }
         }
     }
+
+    /// Pushes each segment's mean of `values` (one per cell): its sum in order over the count.
+    fn means(&self, values: &[f64], out: &mut Vec<f64>) {
+        let first = out.len();
+        let n = self.bounds.len() - 1;
+        out.resize(first + n, 0.0);
+        // `Iterator::sum` of f64 starts from -0.0: the same bits as `values[a..b].iter().sum()`
+        let cells = |j: usize| (self.bounds[j], self.bounds[j + 1]);
+        segment_sums::<false>(values, cells, -0.0, &mut out[first..]);
+        for (j, m) in out[first..].iter_mut().enumerate() {
+            *m /= (self.bounds[j + 1] - self.bounds[j]) as f64;
+        }
+    }
 }
 
-/// The sum of `u[i + 1] - u[i]` over the faces `i` in `a..b` (in that order; a periodic body's
-/// last face wraps around to `u[0]`, a free body's has no next node and is left out), m, and the
-/// number of faces summed.
-fn segment_extension(u: &[f64], a: usize, b: usize, boundary: Boundary) -> (f64, usize) {
-    let cells = u.len();
-    let inner = b.min(cells.saturating_sub(1)).max(a);
-    let mut sum = 0.0;
-    for (here, next) in u[a..inner].iter().zip(&u[a + 1..inner + 1]) {
-        sum += next - here;
+/// `sums[j]`: for segment j, whose terms are at `span(j) = (a, b)`, the sum from `zero`, in
+/// order, of `values[i]` over i in a..b, or with `DIFF` of `values[i + 1] - values[i]`: the
+/// bits of the plain loop. Four segments at a time, so that their chains of dependent additions
+/// overlap (a last group of fewer repeats its last segment, whose extra sums are dropped).
+fn segment_sums<const DIFF: bool>(
+    values: &[f64],
+    span: impl Fn(usize) -> (usize, usize),
+    zero: f64,
+    sums: &mut [f64],
+) {
+    let extra = usize::from(DIFF);
+    let term = |s: &[f64], k: usize| if DIFF { s[k + 1] - s[k] } else { s[k] };
+    let n = sums.len();
+    for (g, out) in sums.chunks_mut(4).enumerate() {
+        let lanes = [0, 1, 2, 3].map(|l| {
+            let (a, b) = span((4 * g + l).min(n - 1));
+            &values[a..b + extra]
+        });
+        let common = lanes.iter().map(|s| s.len() - extra).min().unwrap_or(0);
+        let [s0, s1, s2, s3] = lanes.map(|s| &s[..common + extra]);
+        let mut acc = [zero; 4];
+        for k in 0..common {
+            acc[0] += term(s0, k);
+            acc[1] += term(s1, k);
+            acc[2] += term(s2, k);
+            acc[3] += term(s3, k);
+        }
+        for (acc, s) in acc.iter_mut().zip(lanes) {
+            for k in common..s.len() - extra {
+                *acc += term(s, k);
+            }
+        }
+        out.copy_from_slice(&acc[..out.len()]);
     }
-    let mut count = inner - a;
-    if b > inner && boundary == Boundary::Periodic {
-        sum += u[0] - u[cells - 1];
-        count += 1;
-    }
-    (sum, count)
 }
 
 /// The fields observed when none are named.
