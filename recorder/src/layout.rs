@@ -5,7 +5,8 @@
 //! actuation the plant applied; the lanes of the acting controller and of stick and slip.
 //! Right column: tabs with the metrics over time (the plant's per-period and running blocks
 //! against both models' predictions, the tail beside the paper's Fig. 4, the task's distance and
-//! energy against their targets; shown first) and the per-step values; the event log.
+//! energy against their targets; shown first) and the per-step values; tabs with the text log
+//! (statuses, the recorder's notes) and the stick episodes as a table.
 //! The time panel shows simulated time, in seconds.
 //!
 //! The blueprint entities are written directly (containers, views, viewport, panels), the same
@@ -248,7 +249,13 @@ fn right() -> Node {
             ContainerKind::Vertical,
             vec![
                 tabs,
-                view("TextLog", "Episodes, status, recorder notes", paths::LOG),
+                container(
+                    ContainerKind::Tabs,
+                    vec![
+                        view("TextLog", "Status and recorder notes", paths::LOG),
+                        view("Dataframe", "Stick episodes", paths::EPISODES),
+                    ],
+                ),
             ],
         ),
         &[],

@@ -52,10 +52,14 @@ pub const LANES: &str = "lanes";
 pub const CONTROLLER: &str = "lanes/controller";
 /// Tail displacement: `tail/plant`, `tail/paper`.
 pub const TAIL: &str = "tail";
-/// Text log: episodes, status, recorder notes.
+/// Text log: status, recorder notes.
 pub const LOG: &str = "log";
-/// Episodes in the text log.
-pub const LOG_EPISODES: &str = "log/episodes";
+/// Stick episodes, a row apiece at the communication step in which it ended: `node`, `start`
+/// (s), `end` (s), `duration` (s) and `direction` (+1 the node left forward, -1 backward), as
+/// numbers (archetype [`EPISODE_ARCHETYPE`]; the viewer's dataframe view shows them).
+pub const EPISODES: &str = "events/episodes";
+/// The archetype name of the episodes' columns.
+pub const EPISODE_ARCHETYPE: &str = "crawler.StickEpisodes";
 /// Status messages of the processes.
 pub const LOG_STATUS: &str = "log/status";
 /// Notes of the recorder itself (drops, rejections).

@@ -523,6 +523,8 @@ pub struct Entity {
     pub points: Vec<(i64, Vec<[f32; 2]>)>,
     /// Texts (TextLog archetype), static ones included, in the order read.
     pub texts: Vec<String>,
+    /// Items of the list columns named `*:node` (the stick episodes' nodes), over all rows.
+    pub nodes: usize,
 }
 
 impl Recording {
@@ -561,6 +563,11 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             let e = rec.entities.entry(path).or_default();
             for row in chunk.iter_component::<rerun::components::Text>(texts) {
                 e.texts.extend(row.iter().map(|t| t.as_str().to_string()));
+            }
+            for (id, column) in chunk.components().iter() {
+                if id.as_str().ends_with(":node") {
+                    e.nodes += column.list_array.values().len();
+                }
             }
             for row in chunk.iter_component::<rerun::components::LineStrip2D>(strips) {
                 e.strips.push(

@@ -241,7 +241,17 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
             .count()
             >= 32
     );
-    assert!(rec.entity("log/episodes").rows > 1000, "episodes logged");
+    // every stick episode, a row apiece
+    let episodes = rec.entity("events/episodes");
+    assert_eq!(episodes.rows, episodes.nodes, "one episode a row");
+    assert!(episodes.rows > 1000, "{} episodes", episodes.rows);
+    assert!(
+        b.stderr
+            .contains(&format!("{} stick episodes (whole run)", episodes.nodes)),
+        "{} episodes recorded; bridge: {}",
+        episodes.nodes,
+        b.stderr
+    );
     // the plant's final metrics, equal to the in-process run of the same scenario
     for key in [
         "velocity",

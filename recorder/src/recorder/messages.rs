@@ -10,16 +10,22 @@ use crate::checks;
 use crate::paths;
 use crawler_facts::Metric;
 
-/// Episode rows sent to the recording as one chunk. In hard stick-slip tens of thousands of
-/// episodes end per second: a logging call apiece made the recorder fall behind the run.
+/// Episodes sent to the recording as one chunk (at the first events message that reaches
+/// it). In hard stick-slip tens of thousands of episodes end per second: a logging call, or a
+/// formatted text row, apiece made the recorder fall behind the run.
 pub const EPISODE_ROWS: usize = 4096;
 
-/// Text rows of stick episodes waiting to be sent together, each with its step and time.
+/// Stick episodes waiting to be sent together, as columns: a row per episode, at the step (and
+/// time) of the events message that brought it.
 #[derive(Default)]
 pub struct EpisodeRows {
     steps: Vec<i64>,
     times: Vec<f64>,
-    texts: Vec<String>,
+    node: Vec<u32>,
+    start: Vec<f64>,
+    end: Vec<f64>,
+    duration: Vec<f64>,
+    direction: Vec<i8>,
 }
 
 /// Colours of the metric series' sources (the plant's per-period blocks in the dark theme's
@@ -310,42 +316,50 @@ impl Recorder {
     /// One text row per episode at its block's step and time, sent in chunks of
     /// [`EPISODE_ROWS`] (and whatever is pending at every block sent and at the end).
     pub(super) fn log_events(&mut self, e: &Events) -> anyhow::Result<()> {
+        let rows = &mut self.episodes;
+        self.counts.episodes += e.episodes.len() as u64;
         for ep in &e.episodes {
-            self.counts.episodes += 1;
-            self.episodes.steps.push(e.step as i64);
-            self.episodes.times.push(e.time);
-            self.episodes.texts.push(format!(
-                "node {} stuck {:.4} s ({:.4}-{:.4} s), left {}",
-                ep.node,
-                ep.duration,
-                ep.start,
-                ep.end,
-                if ep.direction > 0 {
-                    "forward"
-                } else {
-                    "backward"
-                }
-            ));
-            if self.episodes.texts.len() >= EPISODE_ROWS {
-                self.send_episodes()?;
-            }
+            rows.steps.push(e.step as i64);
+            rows.times.push(e.time);
+            rows.node.push(ep.node);
+            rows.start.push(ep.start);
+            rows.end.push(ep.end);
+            rows.duration.push(ep.duration);
+            rows.direction.push(ep.direction);
+        }
+        if rows.node.len() >= EPISODE_ROWS {
+            self.send_episodes()?;
         }
         Ok(())
     }
 
-    /// Sends the pending episode rows as one chunk.
+    /// Sends the pending episodes as one chunk: `node`, `start` (s), `end` (s), `duration` (s)
+    /// and `direction` (+1 the node left forward, -1 backward), a row apiece (read as a table:
+    /// the viewer's dataframe view shows their numbers).
     pub(super) fn send_episodes(&mut self) -> anyhow::Result<()> {
+        use rerun::external::arrow::array::{ArrayRef, Float64Array, Int8Array, UInt32Array};
+        use std::sync::Arc;
         let rows = std::mem::take(&mut self.episodes);
-        let n = rows.texts.len();
-        if n == 0 {
+        if rows.steps.is_empty() {
             return Ok(());
         }
-        let columns = rerun::TextLog::update_fields()
-            .with_many_text(rows.texts)
-            .with_many_level(std::iter::repeat_n(rerun::TextLogLevel::DEBUG, n))
-            .columns_of_unit_batches()?;
+        let arrays: [(&str, ArrayRef); 5] = [
+            ("node", Arc::new(UInt32Array::from(rows.node))),
+            ("start", Arc::new(Float64Array::from(rows.start))),
+            ("end", Arc::new(Float64Array::from(rows.end))),
+            ("duration", Arc::new(Float64Array::from(rows.duration))),
+            ("direction", Arc::new(Int8Array::from(rows.direction))),
+        ];
+        let episodes = arrays.into_iter().fold(
+            rerun::DynamicArchetype::new(paths::EPISODE_ARCHETYPE),
+            |a, (name, array)| a.with_component_from_data(name, array),
+        );
+        let columns = rerun::AsComponents::as_serialized_batches(&episodes)
+            .into_iter()
+            .map(|batch| batch.column_of_unit_batches())
+            .collect::<Result<Vec<_>, _>>()?;
         self.sinks.send(
-            paths::LOG_EPISODES,
+            paths::EPISODES,
             [
                 rerun::TimeColumn::new_sequence(paths::STEP_TIMELINE, rows.steps),
                 rerun::TimeColumn::new_duration_secs(paths::TIME_TIMELINE, rows.times),

@@ -205,36 +205,87 @@ fn clock_blocks_are_the_running_metrics_and_period_blocks_the_plants() {
 }
 
 #[test]
-fn every_episode_is_one_row_at_its_step_sent_in_few_chunks() {
+fn every_episode_is_a_row_at_its_step_with_its_numbers_sent_in_few_chunks() {
+    use rerun::external::arrow::array::{Array, Float64Array, Int8Array, UInt32Array};
     let (mut r, storage) = recorder(RecorderOptions::default(), 64, 1000);
-    // 5000 episodes in blocks of 50 (at most one per node and message): one full chunk on the way, the rest at the end
-    let ep = EpisodeMsg {
-        node: 3,
-        start: 0.05,
-        end: 0.06,
-        duration: 0.01,
-        direction: 1,
-    };
+    // 100 messages of 50 episodes (node j, from step/1000 - (j+1)/1e4 s to step/1000 s, leaving
+    // forward on even nodes): a chunk once EPISODE_ROWS episodes are held, the rest at the end
     for step in 100..200u64 {
+        let t = step as f64 * 1e-3;
+        let episodes = (0..50u32)
+            .map(|j| EpisodeMsg {
+                node: j,
+                start: t - (j + 1) as f64 * 1e-4,
+                end: t,
+                duration: (j + 1) as f64 * 1e-4,
+                direction: if j % 2 == 0 { 1 } else { -1 },
+            })
+            .collect();
         let e = Events {
             v: PROTOCOL_VERSION,
             step,
-            time: step as f64 * 1e-3,
-            episodes: vec![ep; 50],
+            time: t,
+            episodes,
         };
         r.handle(Incoming::Events(encode(&e))).unwrap();
     }
     r.finish().unwrap();
-    let chunks = rows_of(&chunks(&storage), paths::LOG_EPISODES);
-    let lengths: Vec<usize> = chunks.iter().map(Vec::len).collect();
-    assert_eq!(
-        lengths,
-        vec![messages::EPISODE_ROWS, 5000 - messages::EPISODE_ROWS]
-    );
-    let steps: Vec<i64> = chunks.concat();
-    let expected: Vec<i64> = (100..200)
-        .flat_map(|s| std::iter::repeat_n(s, 50))
-        .collect();
-    assert_eq!(steps, expected);
+    let all = chunks(&storage);
+    let first_chunk_rows = messages::EPISODE_ROWS.div_ceil(50) * 50;
+    let rows = rows_of(&all, paths::EPISODES);
+    let lengths: Vec<usize> = rows.iter().map(Vec::len).collect();
+    assert_eq!(lengths, vec![first_chunk_rows, 5000 - first_chunk_rows]);
+    let steps: Vec<i64> = (100..200).flat_map(|s| [s; 50]).collect();
+    assert_eq!(rows.concat(), steps);
+    let list = |c: &rerun::log::Chunk, name: &'static str| {
+        let id = format!("{}:{name}", paths::EPISODE_ARCHETYPE);
+        let (_, column) = c
+            .components()
+            .iter()
+            .find(|(k, _)| k.as_str() == id)
+            .unwrap_or_else(|| panic!("{id} in {:?}", c.components().keys()));
+        let column = column.list_array.clone();
+        let lengths: Vec<usize> = column.iter().map(|row| row.unwrap().len()).collect();
+        assert!(lengths.iter().all(|&n| n == 1), "{name}: one episode a row");
+        column.values().clone()
+    };
+    let mut nodes: Vec<u32> = vec![];
+    let mut starts: Vec<f64> = vec![];
+    let mut durations: Vec<f64> = vec![];
+    let mut directions: Vec<i8> = vec![];
+    for c in all
+        .iter()
+        .filter(|c| c.entity_path().to_string() == format!("/{}", paths::EPISODES))
+    {
+        let node = list(c, "node");
+        nodes.extend(
+            node.as_any()
+                .downcast_ref::<UInt32Array>()
+                .unwrap()
+                .values(),
+        );
+        let start = list(c, "start");
+        starts.extend(
+            start
+                .as_any()
+                .downcast_ref::<Float64Array>()
+                .unwrap()
+                .values(),
+        );
+        let d = list(c, "duration");
+        durations.extend(d.as_any().downcast_ref::<Float64Array>().unwrap().values());
+        let dir = list(c, "direction");
+        directions.extend(dir.as_any().downcast_ref::<Int8Array>().unwrap().values());
+    }
+    assert_eq!(nodes.len(), 5000);
+    for (k, step) in (100..200u64).enumerate() {
+        for j in 0..50usize {
+            let i = 50 * k + j;
+            assert_eq!(nodes[i], j as u32);
+            assert_eq!(starts[i], step as f64 * 1e-3 - (j + 1) as f64 * 1e-4);
+            assert_eq!(durations[i], (j + 1) as f64 * 1e-4);
+            assert_eq!(directions[i], if j % 2 == 0 { 1 } else { -1 });
+        }
+    }
     assert_eq!(r.counts().episodes, 5000);
 }
