@@ -199,6 +199,13 @@ fn one_command_runs_the_whole_cosimulation() {
         "{}",
         out.stderr
     );
+    // nothing of the run refused (what the plant sent before the recorder found it is said apart)
+    assert!(
+        out.stderr
+            .contains("0 rejected (0 invalid), 0 refused at arrival"),
+        "{}",
+        out.stderr
+    );
     // chunks Rerun likes: at most twice the lower bound of its object-store profile
     let (chunks, bound) = chunks_and_lower_bound(&rrd);
     assert!(

@@ -25,9 +25,11 @@ pub struct Refused {
     /// Without a valid envelope, or (authenticated runs) without a valid seal: not from a
     /// process holding the credential.
     pub unsealed: AtomicU64,
-    /// Of another run instance (an earlier run with the same credential), or arrived before
-    /// this process knew the run's instance.
+    /// Of another run instance (an earlier run with the same credential).
     pub other_run: AtomicU64,
+    /// Arrived before this process knew the run's instance (a process that joins learns it
+    /// from the plant; what the plant sent before is not for it).
+    pub early: AtomicU64,
     /// From a sender that may not send on the key (another role, or not the expected process).
     pub foreign: AtomicU64,
     /// Not newer than the last message taken from its sender on the key: a replay.
@@ -56,6 +58,11 @@ impl Refused {
         Self::load(&self.other_run)
     }
 
+    /// Payloads that arrived before the run's instance was known, so far.
+    pub fn early(&self) -> u64 {
+        Self::load(&self.early)
+    }
+
     /// Payloads from senders that may not send on their key so far.
     pub fn foreign(&self) -> u64 {
         Self::load(&self.foreign)
@@ -76,6 +83,7 @@ impl Refused {
         self.oversize()
             + self.unsealed()
             + self.other_run()
+            + self.early()
             + self.foreign()
             + self.replayed()
             + self.overflow()
@@ -87,6 +95,7 @@ impl Refused {
             Refusal::Oversize => &self.oversize,
             Refusal::Unsealed => &self.unsealed,
             Refusal::OtherRun => &self.other_run,
+            Refusal::Early => &self.early,
             Refusal::Foreign => &self.foreign,
             Refusal::Replayed => &self.replayed,
             Refusal::Overflow => &self.overflow,
@@ -98,10 +107,11 @@ impl Refused {
     pub fn describe(&self) -> Option<String> {
         (self.total() > 0).then(|| {
             format!(
-                "{} oversized, {} without a valid envelope or seal, {} of another run instance, {} from senders that may not send there, {} replayed, {} beyond an inbox's budget",
+                "{} oversized, {} without a valid envelope or seal, {} of another run instance, {} before the run's instance was known, {} from senders that may not send there, {} replayed, {} beyond an inbox's budget",
                 self.oversize(),
                 self.unsealed(),
                 self.other_run(),
+                self.early(),
                 self.foreign(),
                 self.replayed(),
                 self.overflow()
@@ -117,8 +127,10 @@ pub enum Refusal {
     Oversize,
     /// No valid envelope or seal.
     Unsealed,
-    /// Another run instance (or not known yet).
+    /// Another run instance.
     OtherRun,
+    /// Before the run's instance was known.
+    Early,
     /// A sender that may not send on the key.
     Foreign,
     /// Not newer than what was taken from its sender.
@@ -294,8 +306,10 @@ impl Gate {
         let header = open(self.seal.as_ref(), key_expr, payload, attachment, 0)
             .ok_or(Refusal::Unsealed)?
             .0;
-        if self.run.get() != Some(header.run) {
-            return Err(Refusal::OtherRun);
+        match self.run.get() {
+            None => return Err(Refusal::Early),
+            Some(run) if run != header.run => return Err(Refusal::OtherRun),
+            Some(_) => {}
         }
         if !self.accept.admits(key_expr, &header) {
             return Err(Refusal::Foreign);
@@ -416,7 +430,7 @@ mod tests {
         // sealed with the run's key (a credential kept for two runs), of an earlier instance
         let earlier = header(2, Role::Plant, "000000000000000a", 1);
         assert_eq!(check(&g, &earlier, b"a", Some(&s)), Err(Refusal::OtherRun));
-        // a process that does not know the instance yet refuses everything
+        // a process that does not know the instance yet refuses everything, counted apart
         let blind = Gate::new(
             100,
             Some(s.clone()),
@@ -426,9 +440,15 @@ mod tests {
         );
         assert_eq!(
             check(&blind, &plant(1), b"a", Some(&s)),
-            Err(Refusal::OtherRun)
+            Err(Refusal::Early)
         );
         assert_eq!(g.refused().other_run(), 1);
+        assert_eq!(g.refused().early(), 0);
+        assert_eq!(
+            (blind.refused().early(), blind.refused().other_run()),
+            (1, 0)
+        );
+        assert_eq!(blind.refused().total(), 1);
     }
 
     #[test]

@@ -549,13 +549,14 @@ impl Runner {
 
 /// `r` with what the arrival gate refused added: an oversized payload counts as malformed, one
 /// without a valid envelope or seal or from a sender that may not send there as foreign, one of
-/// another run instance as `other_run`, a replay as `replayed`, one beyond a budget as overflow.
+/// another run instance (or before the instance was known, which the plant never is) as
+/// `other_run`, a replay as `replayed`, one beyond a budget as overflow.
 fn add_arrivals(r: Rejections, inbox: &Inbox) -> Rejections {
     let a = &inbox.refused;
     Rejections {
         malformed: r.malformed + a.oversize(),
         foreign: r.foreign + a.unsealed() + a.foreign(),
-        other_run: r.other_run + a.other_run(),
+        other_run: r.other_run + a.other_run() + a.early(),
         replayed: r.replayed + a.replayed(),
         overflow: r.overflow + a.overflow(),
         ..r

@@ -460,9 +460,15 @@ impl Session {
             Ended::Finished => "run finished; recording closed",
             Ended::Idle => "no message for the idle timeout; recording closed",
         };
+        // sent before the recorder knew the run's instance (the plant's first status, when the
+        // recorder starts first): not for it, and not a refusal of anything of the run's
+        let early = match self.inbox.refused.early() {
+            0 => String::new(),
+            n => format!(" ({n} sent before the plant was found, not recorded)"),
+        };
         if recorded {
             eprintln!(
-                "crawler-recorder: {how} {out}: {}; {} metric blocks ({} of them clock blocks), {} stick episodes (whole run), {} rejected ({} invalid), {} refused at arrival, {} dropped{viewer}",
+                "crawler-recorder: {how} {out}: {}; {} metric blocks ({} of them clock blocks), {} stick episodes (whole run), {} rejected ({} invalid), {} refused at arrival{early}, {} dropped{viewer}",
                 self.recorder.closing_note(),
                 c.metric_blocks,
                 c.clock_blocks,
