@@ -43,13 +43,11 @@ fn messages_beyond_the_links_limit_are_counted_as_dropped() {
     let deadline = Instant::now() + Duration::from_secs(30);
     let mut sent = 0;
     while reassembly::dropped() < before + 3 && Instant::now() < deadline {
+        // blocking: a put under congestion (a loaded machine) would otherwise drop the rest of
+        // the message at the sender, which then never reaches the reassembly to be counted
         client
             .put("crawler/reassembly/state", vec![0u8; 4 * limit])
-            .wait()
-            .unwrap();
-        // a message within the limit still arrives
-        client
-            .put("crawler/reassembly/state", vec![0u8; 100])
+            .congestion_control(zenoh::qos::CongestionControl::Block)
             .wait()
             .unwrap();
         sent += 1;
@@ -61,8 +59,15 @@ fn messages_beyond_the_links_limit_are_counted_as_dropped() {
         "{sent} oversized messages sent, {dropped} counted as dropped"
     );
     assert!(dropped <= sent, "{dropped} counted for {sent} sent");
-    let deadline = Instant::now() + Duration::from_secs(10);
+    // a message within the limit still arrives (sent until one does: the subscription may
+    // reach the client after its first puts)
+    let deadline = Instant::now() + Duration::from_secs(30);
     while received.load(std::sync::atomic::Ordering::Relaxed) == 0 && Instant::now() < deadline {
+        client
+            .put("crawler/reassembly/state", vec![0u8; 100])
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .wait()
+            .unwrap();
         std::thread::sleep(Duration::from_millis(20));
     }
     assert!(received.load(std::sync::atomic::Ordering::Relaxed) > 0);
