@@ -241,17 +241,7 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
             .count()
             >= 32
     );
-    // every stick episode, a row apiece
-    let episodes = rec.entity("events/episodes");
-    assert_eq!(episodes.rows, episodes.nodes, "one episode a row");
-    assert!(episodes.rows > 1000, "{} episodes", episodes.rows);
-    assert!(
-        b.stderr
-            .contains(&format!("{} stick episodes (whole run)", episodes.nodes)),
-        "{} episodes recorded; bridge: {}",
-        episodes.nodes,
-        b.stderr
-    );
+    every_episode_is_recorded(&rec, &b.stderr);
     // the plant's final metrics, equal to the in-process run of the same scenario
     for key in [
         "velocity",
@@ -288,6 +278,18 @@ fn a_full_recording_holds_the_metrics_of_the_in_process_run() {
     assert_eq!(checked as u64, last, "states 1 to {last}");
     assert_eq!(rec.entity("actuation/applied/f0").steps.first(), Some(&1));
     assert!(!rec.entities.contains_key("actuation/applied/field"));
+}
+
+/// Every stick episode, a row apiece, as many as the recorder's closing line counts.
+fn every_episode_is_recorded(rec: &Recording, stderr: &str) {
+    let episodes = rec.entity("events/episodes");
+    assert_eq!(episodes.rows, episodes.nodes, "one episode a row");
+    assert!(episodes.rows > 1000, "{} episodes", episodes.rows);
+    assert!(
+        stderr.contains(&format!("{} stick episodes (whole run)", episodes.nodes)),
+        "{} episodes recorded; recorder: {stderr}",
+        episodes.nodes
+    );
 }
 
 /// A controller that drives the body with a field (the `reflex` policy: a new field every step):
