@@ -225,10 +225,9 @@ impl Sensor {
                     };
                     segment_sums::<true>(u, faces, 0.0, &mut out[first..]);
                     for (j, sum) in out[first..].iter_mut().enumerate() {
-                        let (a, b) = (self.bounds[j], self.bounds[j + 1]);
-                        let inner = b.min(last).max(a);
+                        let (a, inner) = faces(j);
                         let mut count = inner - a;
-                        if b > inner && self.boundary == Boundary::Periodic {
+                        if self.bounds[j + 1] > inner && self.boundary == Boundary::Periodic {
                             // a periodic body's last face wraps around to u[0]
                             *sum += u[0] - u[cells - 1];
                             count += 1;

@@ -313,8 +313,8 @@ impl Recorder {
         self.predictions = p.models;
     }
 
-    /// One text row per episode at its block's step and time, sent in chunks of
-    /// [`EPISODE_ROWS`] (and whatever is pending at every block sent and at the end).
+    /// One row of numbers per episode at its message's step and time, sent in chunks of at
+    /// least [`EPISODE_ROWS`] (and whatever is pending at every block sent and at the end).
     pub(super) fn log_events(&mut self, e: &Events) -> anyhow::Result<()> {
         let rows = &mut self.episodes;
         self.counts.episodes += e.episodes.len() as u64;
