@@ -42,6 +42,7 @@ pub mod simd;
 pub mod simulate;
 pub mod slave;
 pub mod solver;
+pub mod sums;
 pub mod task;
 pub mod wave;
 

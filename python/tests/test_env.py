@@ -117,6 +117,43 @@ def test_a_trained_agent_drives_the_same_run_in_the_environment_and_in_process(a
     assert run.report.to_dict() == env.report().to_dict()
 
 
+@pytest.mark.parametrize("source, action", [(None, "wave"), ("free-body.toml", "field")])
+def test_the_environment_senses_what_the_policys_sensor_senses_every_step_bit_for_bit(source,
+                                                                                      action):
+    """The environment sums the tension per segment from the plant and takes the distance from
+    the task; the policy's sensor reads the observation a controller gets. Every field, segments
+    of unequal length: the features each route hands the agent are the same bits."""
+    path = None if source is None else str(ROOT / "scenarios" / source)
+    scenario = softcrawler.Scenario(path, values={"task.distance": 0.05}, cells=67, t_end=6.0)
+    fields = list(softcrawler.env.FIELDS)
+    rng = np.random.default_rng(11)
+    weights = rng.normal(size=(7 if action == "field" else 3, 4 * 7 + 5)) * 0.05
+    seen: dict[str, list[bytes]] = {"env": [], "policy": []}
+
+    def agent_of(route: str):
+        def agent(features: np.ndarray) -> np.ndarray:
+            seen[route].append(features.tobytes())
+            x = np.tanh(weights @ features)
+            if action == "wave":
+                return np.array([0.4 + 0.2 * x[0], 60.0 + 20 * x[1], 6.3 + 3 * x[2]])
+            return 0.5 * x
+        return agent
+
+    env = SoftCrawlerEnv(scenario, action=action, segments=7, fields=fields, frame_skip=3)
+    obs, _ = env.reset()
+    agent = agent_of("env")
+    while True:
+        obs, _, term, trunc, _ = env.step(agent(obs))
+        if term or trunc:
+            break
+    policy = softcrawler.EnvPolicy(agent_of("policy"), action=action, segments=7, fields=fields,
+                                   frame_skip=3)
+    run = softcrawler.run(env.scenario.with_values(task=True), policy)
+    assert len(seen["env"]) > 50
+    assert seen["policy"] == seen["env"]
+    assert run.report.state_digest == env.state_digest
+
+
 @pytest.mark.parametrize("source", [None, "free-body.toml"])
 @pytest.mark.parametrize("segments", [8, 7, 1])
 def test_the_sensed_strain_is_each_segments_extension_over_its_faces(source, segments):

@@ -307,19 +307,16 @@ impl Execution {
 
     /// The observation of the plant's current state (what the controller is shown).
     pub fn observation(&mut self) -> Observation<'_> {
-        let plant = self.slave.plant();
-        plant.tension_into(&mut self.tension);
-        let out = plant.outputs();
-        Observation {
-            step: plant.macro_step(),
-            time: plant.time(),
-            u: plant.displacement(),
-            vel: plant.velocity(),
-            tension: &self.tension,
-            stuck: plant.stuck(),
-            mean_speed: out.mean_speed,
-            input_power: out.input_power,
-        }
+        self.slave.plant().tension_into(&mut self.tension);
+        observation_of(self.slave.plant(), &self.tension)
+    }
+
+    /// [`Self::observation`] with its tension computed into the caller's `tension` instead of
+    /// the run's own buffer (a caller stepping many runs on one thread keeps one buffer, warm in
+    /// its cache, for all of them).
+    pub fn observation_with<'a>(&'a self, tension: &'a mut Vec<f64>) -> Observation<'a> {
+        self.slave.plant().tension_into(tension);
+        observation_of(self.slave.plant(), tension)
     }
 
     /// Applies `actuation` (if any) and takes one communication step; then follows the task,
@@ -391,5 +388,21 @@ impl Execution {
     /// The report of the run so far (its task included).
     pub fn report(&self) -> Result<Report, ReportError> {
         report_with_task(&self.name, self.plant(), &self.log, Some(&self.task))
+    }
+}
+
+/// What a controller is shown of `plant`'s current state, with `tension` (one value per half
+/// node, N).
+fn observation_of<'a>(plant: &'a Plant, tension: &'a [f64]) -> Observation<'a> {
+    let out = plant.outputs();
+    Observation {
+        step: plant.macro_step(),
+        time: plant.time(),
+        u: plant.displacement(),
+        vel: plant.velocity(),
+        tension,
+        stuck: plant.stuck(),
+        mean_speed: out.mean_speed,
+        input_power: out.input_power,
     }
 }

@@ -1,5 +1,7 @@
 //! One crawler on the task: an episode, its reward and its end.
 
+use std::cell::RefCell;
+
 use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -45,11 +47,19 @@ pub(super) struct StepResult {
     pub(super) truncated: bool,
 }
 
-pub(super) fn sensed(run: &mut Execution, sensor: &Sensor, out: &mut Vec<f64>) {
-    // the sensor's first observation is the task's start: the same mean, the same subtraction
+thread_local! {
+    /// The tension of the observation being sensed: one buffer per thread, shared by the runs
+    /// the thread steps (a vector's crawlers), so it stays in the thread's cache.
+    static TENSION: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
+}
+
+/// The sensor's numbers for the run's current state (the distance is the task's: the same
+/// subtraction of the same means).
+pub(super) fn sensed(run: &Execution, sensor: &Sensor, out: &mut Vec<f64>) {
     let travelled = run.task().distance;
-    let obs = run.observation();
-    sensor.encode(&obs, Some(travelled), out);
+    TENSION.with_borrow_mut(|tension| {
+        sensor.encode(&run.observation_with(tension), Some(travelled), out);
+    });
 }
 
 impl EnvCore {
@@ -80,13 +90,13 @@ impl EnvCore {
     }
 
     pub(super) fn observe(&mut self, out: &mut Vec<f64>) {
-        sensed(&mut self.run, &self.sensor, out);
+        sensed(&self.run, &self.sensor, out);
     }
 
     /// The observation into `row` (as long as the sensor's dimension).
     pub(super) fn observe_into(&mut self, row: &mut [f64]) {
         self.scratch.clear();
-        sensed(&mut self.run, &self.sensor, &mut self.scratch);
+        sensed(&self.run, &self.sensor, &mut self.scratch);
         row.copy_from_slice(&self.scratch);
     }
 

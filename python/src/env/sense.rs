@@ -3,6 +3,7 @@
 use crawler_physics::execution::Observation;
 use crawler_physics::params::Boundary;
 use crawler_physics::scenario::Scenario;
+use crawler_physics::sums::span_sums;
 use crawler_policies::Context;
 
 /// The sensed fields: name, per segment (else one number), lower bound, what it is.
@@ -223,7 +224,7 @@ impl Sensor {
                         let a = self.bounds[j];
                         (a, self.bounds[j + 1].min(last).max(a))
                     };
-                    segment_sums::<true>(u, faces, 0.0, &mut out[first..]);
+                    span_sums::<true>(u, faces, 0.0, &mut out[first..]);
                     for (j, sum) in out[first..].iter_mut().enumerate() {
                         let (a, inner) = faces(j);
                         let mut count = inner - a;
@@ -273,46 +274,10 @@ impl Sensor {
         out.resize(first + n, 0.0);
         // `Iterator::sum` of f64 starts from -0.0: the same bits as `values[a..b].iter().sum()`
         let cells = |j: usize| (self.bounds[j], self.bounds[j + 1]);
-        segment_sums::<false>(values, cells, -0.0, &mut out[first..]);
+        span_sums::<false>(values, cells, -0.0, &mut out[first..]);
         for (j, m) in out[first..].iter_mut().enumerate() {
             *m /= (self.bounds[j + 1] - self.bounds[j]) as f64;
         }
-    }
-}
-
-/// `sums[j]`: for segment j, whose terms are at `span(j) = (a, b)`, the sum from `zero`, in
-/// order, of `values[i]` over i in a..b, or with `DIFF` of `values[i + 1] - values[i]`: the
-/// bits of the plain loop. Four segments at a time, so that their chains of dependent additions
-/// overlap (a last group of fewer repeats its last segment, whose extra sums are dropped).
-fn segment_sums<const DIFF: bool>(
-    values: &[f64],
-    span: impl Fn(usize) -> (usize, usize),
-    zero: f64,
-    sums: &mut [f64],
-) {
-    let extra = usize::from(DIFF);
-    let term = |s: &[f64], k: usize| if DIFF { s[k + 1] - s[k] } else { s[k] };
-    let n = sums.len();
-    for (g, out) in sums.chunks_mut(4).enumerate() {
-        let lanes = [0, 1, 2, 3].map(|l| {
-            let (a, b) = span((4 * g + l).min(n - 1));
-            &values[a..b + extra]
-        });
-        let common = lanes.iter().map(|s| s.len() - extra).min().unwrap_or(0);
-        let [s0, s1, s2, s3] = lanes.map(|s| &s[..common + extra]);
-        let mut acc = [zero; 4];
-        for k in 0..common {
-            acc[0] += term(s0, k);
-            acc[1] += term(s1, k);
-            acc[2] += term(s2, k);
-            acc[3] += term(s3, k);
-        }
-        for (acc, s) in acc.iter_mut().zip(lanes) {
-            for k in common..s.len() - extra {
-                *acc += term(s, k);
-            }
-        }
-        out.copy_from_slice(&acc[..out.len()]);
     }
 }
 
