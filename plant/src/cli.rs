@@ -80,6 +80,9 @@ struct BenchArgs {
     /// Wall time per measurement, s.
     #[arg(long, default_value_t = 2.0)]
     seconds: f64,
+    /// Plants stepped in turn, one communication step each (1 to 1024).
+    #[arg(long, default_value_t = 1)]
+    plants: usize,
 }
 
 #[derive(Args)]
@@ -350,7 +353,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "invalid --seconds = {}: allowed a wall time in seconds, 0 < seconds <= 3600",
                 crawler_cli::number(a.seconds)
             );
-            let r = crate::bench::bench(&scenario, scenario.plant.numerics.cells, a.seconds)?;
+            anyhow::ensure!(
+                (1..=1024).contains(&a.plants),
+                "invalid --plants = {}: allowed 1 to 1024 plants",
+                a.plants
+            );
+            let cells = scenario.plant.numerics.cells;
+            let r = crate::bench::bench(&scenario, cells, a.plants, a.seconds)?;
             crawler_cli::stdout::line(serde_json::to_string(&r)?)?;
             Ok(())
         }

@@ -410,6 +410,11 @@ const BAD_FLAGS: &[(&str, &[&str], &str)] = &[
         &["bench", "--seconds", "1e308"],
         "invalid --seconds = 1e308: allowed",
     ),
+    (
+        "crawler-plant",
+        &["bench", "--plants", "0"],
+        "invalid --plants = 0: allowed 1 to 1024",
+    ),
 ];
 
 /// Runs `exe args` and checks that it fails with an error that contains `needle`.
