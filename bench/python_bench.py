@@ -13,13 +13,19 @@ Usage: .venv/bin/python bench/python_bench.py [--rounds R] [--cells N] [--t-end 
    one crawler (the plant stepped in Rust, no Python in the loop, `Plant.step(n)`), and a vector of
    64 against the Rust loop on as many threads as the machine has cores (each stepping its own
    plant), so both sides get the cores the machine really gives; the actions are fixed arrays, so
-   the figures are the package's overhead, not an agent's.
+   the figures are the package's overhead, not an agent's. Short windows (--seconds), many
+   interleaved rounds (--env-rounds), the median and quartiles of the per-round ratios: this
+   VM's speed drifts over seconds, so only neighbouring windows compare.
+3. What stepping many crawlers costs in Rust alone: `crawler-plant bench --plants 64` (64 plants
+   stepped in turn on one thread, their states too many for the cache) against `--plants 1`, in
+   the same rounds.
 Needs the package installed (scripts/setup-python.sh) and target/release/crawler-plant.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import pathlib
 import statistics
@@ -90,63 +96,89 @@ def simulate_instructions(cells: int, t_end: float) -> None:
     print(f"  simulate itself: {(py - base) / 1e6:.1f} M = x {(py - base) / cli:.3f} the program")
 
 
-def rust_rate(cells: int, seconds: float, threads: int = 1) -> float:
-    """Communication steps per second of plants stepped in Rust (no Python per step), summed over
-    `threads` threads that each step their own plant (`Plant.step` releases the GIL, so they run
-    on as many cores as the machine gives)."""
-    s = softcrawler.Scenario(cells=cells, t_end=1e4)
-    plants = [softcrawler.Plant(s) for _ in range(threads)]
-    for p in plants:
-        p.step(200)
-    counts = [0] * threads
-    t0 = time.perf_counter()
-
-    def work(i: int) -> None:
-        while time.perf_counter() - t0 < seconds:
-            counts[i] += plants[i].step(500)
-
-    pool = [threading.Thread(target=work, args=(i,)) for i in range(threads)]
-    for t in pool:
-        t.start()
-    for t in pool:
-        t.join()
-    return sum(counts) / (time.perf_counter() - t0)
+#: Communication steps every crawler takes before it is timed: the first few hundred of a run
+#: from rest are cheaper (few nodes stick yet), so both sides are timed past them.
+WARM_STEPS = 2000
 
 
-def env_rate(num: int, cells: int, seconds: float, frame_skip: int = 1) -> float:
-    """Crawler communication steps per second of the environment, summed over the crawlers of
-    a vector (num > 1) or of one environment."""
-    kw = dict(action="wave", frame_skip=frame_skip, cells=cells, t_end=1e4)
-    if num == 1:
-        env = SoftCrawlerEnv(**kw)
-        env.reset(seed=0)
-        w = env.base.wave
-        action = np.array([0.5, w["omega"], w["k"]])
-        def run(steps: int) -> None:
-            for _ in range(steps):
-                if any(env.step(action)[2:4]):
-                    env.reset()
+def rate_scenario(cells: int) -> softcrawler.Scenario:
+    """The paper's scenario on `cells` cells with a task no crawler finishes while timed (D =
+    1 km, J0 = 1 GJ, t_end = 10^4 s): every side steps crawlers in the same regime, none resets."""
+    return softcrawler.Scenario(cells=cells, t_end=1e4).with_values(
+        {"task.distance": 1e3, "task.energy": 1e9})
 
-        run(200)
+
+class RustLoop:
+    """Plants stepped in Rust (no Python per step), one per thread (`Plant.step` releases the
+    GIL, so they run on as many cores as the machine gives)."""
+
+    def __init__(self, cells: int, threads: int) -> None:
+        self.plants = [softcrawler.Plant(rate_scenario(cells)) for _ in range(threads)]
+        for p in self.plants:
+            p.step(WARM_STEPS)
+
+    def rate(self, seconds: float) -> float:
+        """Communication steps per second, summed over the threads."""
+        counts = [0] * len(self.plants)
+        t0 = time.perf_counter()
+
+        def work(i: int) -> None:
+            while time.perf_counter() - t0 < seconds:
+                counts[i] += self.plants[i].step(500)
+
+        pool = [threading.Thread(target=work, args=(i,)) for i in range(len(self.plants))]
+        for t in pool:
+            t.start()
+        for t in pool:
+            t.join()
+        return sum(counts) / (time.perf_counter() - t0)
+
+
+class EnvLoop:
+    """One environment (num = 1) or a vector of `num`, stepped with a fixed action (the
+    scenario's wave), so the figures are the package's overhead, not an agent's."""
+
+    def __init__(self, num: int, cells: int, frame_skip: int) -> None:
+        scenario = rate_scenario(cells)
+        w = scenario.wave
+        action = np.array([w["f0"], w["omega"], w["k"]])
+        kw = dict(action="wave", frame_skip=frame_skip)
+        self.frame_skip = frame_skip
+        if num == 1:
+            env = SoftCrawlerEnv(scenario, **kw)
+            env.reset(seed=0)
+            self.crawlers, self.step = 1, lambda: env.step(action)
+        else:
+            vec = SoftCrawlerVectorEnv(num, scenario, **kw)
+            vec.reset(seed=0)
+            actions = np.tile(action, (num, 1))
+            self.crawlers, self.step = num, lambda: vec.step(actions)
+        for _ in range(WARM_STEPS // frame_skip):
+            self.step()
+
+    def rate(self, seconds: float) -> float:
+        """Crawler communication steps per second, summed over the crawlers."""
+        batch = max(1, 640 // self.crawlers)
         n = 0
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < seconds:
-            run(100)
-            n += 100 * frame_skip
+            for _ in range(batch):
+                self.step()
+            n += batch * self.crawlers * self.frame_skip
         return n / (time.perf_counter() - t0)
-    vec = SoftCrawlerVectorEnv(num, **kw)
-    vec.reset(seed=0)
-    w = softcrawler.Scenario(cells=cells).wave
-    actions = np.tile([0.5, w["omega"], w["k"]], (num, 1))
-    for _ in range(20):
-        vec.step(actions)
-    n = 0
-    t0 = time.perf_counter()
-    while time.perf_counter() - t0 < seconds:
-        for _ in range(10):
-            vec.step(actions)
-        n += 10 * num * frame_skip
-    return n / (time.perf_counter() - t0)
+
+
+def plant_bench(cells: int, plants: int, seconds: float) -> float:
+    """Cell updates per second of `crawler-plant bench` with `plants` plants stepped in turn."""
+    out = subprocess.run([str(TARGET / "release" / "crawler-plant"), "bench", "--cells",
+                          str(cells), "--plants", str(plants), "--seconds", str(seconds)],
+                         check=True, capture_output=True, text=True).stdout
+    return float(json.loads(out)["cell_updates_per_second"])
+
+
+def quartiles(xs: list[float]) -> str:
+    q = statistics.quantiles(xs, n=4) if len(xs) > 1 else [xs[0]] * 3
+    return f"median {q[1]:.3f}, quartiles {q[0]:.3f} to {q[2]:.3f}"
 
 
 def main() -> int:
@@ -154,8 +186,9 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--cells", type=int, default=512)
     ap.add_argument("--t-end", type=float, default=20.0)
-    ap.add_argument("--seconds", type=float, default=3.0)
-    ap.add_argument("--env-rounds", type=int, default=3,
+    ap.add_argument("--seconds", type=float, default=0.25,
+                    help="wall time of each window of the step-rate measurements, s")
+    ap.add_argument("--env-rounds", type=int, default=30,
                     help="interleaved rounds of the step-rate measurements")
     ap.add_argument("--frame-skip", type=int, default=1,
                     help="communication steps per environment step (1: every step)")
@@ -169,28 +202,33 @@ def main() -> int:
     print(f"python {sys.version.split()[0]}, softcrawler {softcrawler.__version__}, "
           f"{os.cpu_count()} cores (shared)")
     simulate_vs_cli(args.rounds, args.cells, args.t_end)
-    # interleaved: Rust loop, one env, vector of 64, repeated; medians
+    # interleaved: Rust loop, one env, Rust loop on every core, vector of 64, 64 plants in
+    # Rust; the medians and quartiles of the per-round ratios
     cores = os.cpu_count() or 1
-    rust, rust_all, one, vec = [], [], [], []
+    loops = [RustLoop(args.cells, 1), EnvLoop(1, args.cells, args.frame_skip),
+             RustLoop(args.cells, cores), EnvLoop(64, args.cells, args.frame_skip)]
+    rust, one, rust_all, vec, p1, p64 = [], [], [], [], [], []
     for _ in range(args.env_rounds):
-        rust.append(rust_rate(args.cells, args.seconds))
-        one.append(env_rate(1, args.cells, args.seconds, args.frame_skip))
-        rust_all.append(rust_rate(args.cells, args.seconds, threads=cores))
-        vec.append(env_rate(64, args.cells, args.seconds, args.frame_skip))
+        for loop, out in zip(loops, (rust, one, rust_all, vec)):
+            out.append(loop.rate(args.seconds))
+        p1.append(plant_bench(args.cells, 1, args.seconds))
+        p64.append(plant_bench(args.cells, 64, args.seconds))
     r, ra, o, v = (statistics.median(x) for x in (rust, rust_all, one, vec))
     one_ratios = [x / y for x, y in zip(one, rust)]
     vec_ratios = [x / y for x, y in zip(vec, rust_all)]
+    many_ratios = [x / y for x, y in zip(p64, p1)]
     print(f"communication steps per second, {args.cells} cells, frame_skip {args.frame_skip}, "
-          f"medians of {args.env_rounds} interleaved rounds:")
+          f"{args.env_rounds} interleaved rounds of {args.seconds} s windows (medians):")
     print(f"  Rust loop, one crawler (Plant.step(500)):           {r:10.0f}")
     print(f"  one environment (env.step per step):                {o:10.0f}  "
-          f"{100 * statistics.median(one_ratios):.1f} % of the Rust loop's rate "
-          f"(Python's overhead per step {100 * (1 / statistics.median(one_ratios) - 1):.1f} %)")
+          f"of the Rust loop's rate: {quartiles(one_ratios)} (Python's overhead per step "
+          f"{100 * (1 / statistics.median(one_ratios) - 1):.1f} %)")
     print(f"  Rust loop, {cores} crawlers on {cores} threads, in all:        {ra:10.0f}  "
           f"{ra / r:.2f}x one crawler's rate")
     print(f"  vector of 64 (vec.step per step), in all:           {v:10.0f}  "
-          f"{100 * statistics.median(vec_ratios):.1f} % of the Rust loop's rate on {cores} "
-          f"threads (per-round ratios {min(vec_ratios):.2f} to {max(vec_ratios):.2f})")
+          f"of the Rust loop's rate on {cores} threads: {quartiles(vec_ratios)}")
+    print(f"  Rust alone, 64 plants stepped in turn on one thread, of one plant's rate "
+          f"(crawler-plant bench --plants 64 / --plants 1): {quartiles(many_ratios)}")
     return 0
 
 
