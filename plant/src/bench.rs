@@ -30,17 +30,18 @@ pub const WARM_STEPS: u64 = 2000;
 
 /// Steps the plant of `scenario` (`plants` of them, in turn, one communication step each) for
 /// about `seconds` of wall time after a warm-up ([`WARM_STEPS`] and a tenth of `seconds`), and
-/// reports the rate. The plants run their full
-/// stepping loop (metrics and events included), driven by the scenario's wave.
+/// reports the rate. The plants run their full stepping loop (metrics and events included),
+/// driven by the scenario's wave.
 pub fn bench(
     scenario: &Scenario,
     cells: usize,
     plants: usize,
     seconds: f64,
 ) -> anyhow::Result<BenchResult> {
+    let plants = plants.max(1);
     let mut s = scenario.clone();
     s.plant.numerics.cells = cells;
-    let mut all = (0..plants.max(1))
+    let mut all = (0..plants)
         .map(|_| {
             let mut plant = Plant::new(s.plant.clone(), 0.0)?;
             plant.set_wave(s.wave)?;
@@ -72,11 +73,11 @@ pub fn bench(
         }
     }
     let elapsed = start.elapsed().as_secs_f64();
-    let steps = rounds * substeps * plants.max(1) as u64;
+    let steps = rounds * substeps * plants as u64;
     let updates = steps as f64 * cells as f64;
     Ok(BenchResult {
         cells,
-        plants: plants.max(1),
+        plants,
         steps,
         seconds: elapsed,
         cell_updates_per_second: updates / elapsed,
