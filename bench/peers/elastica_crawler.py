@@ -100,10 +100,12 @@ class PlaneContact(ea.RodPlaneContactWithAnisotropicFriction):
         self.surface_tol = np.float64(surface_tol)
 
 
-def run(case, cells, dt_share, a):
+def build(case, cells, dt, a, drive=None):
+    """The crawler of `case` on `cells` elements, stepped by `dt` s, with the options `a` (this
+    script's flags): (simulator, rod, stepper). `drive` (anything with f0, k and omega, read at
+    every step; default: the case) is the muscle's wave."""
     length = case.length
     dx = length / cells
-    dt = dt_share * dx / WAVE_SPEED
     radius = math.sqrt(AREA / math.pi)
     sim = Crawler()
     rod = ea.CosseratRod.straight_rod(
@@ -121,7 +123,8 @@ def run(case, cells, dt_share, a):
     g = C_D / RHO
     sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([case.load / RHO, 0.0, -g]))
     x_el = (np.arange(cells) + 0.5) * dx
-    sim.add_forcing_to(rod).using(AxialTension, case=case, x_elements=x_el, finite_strain=a.finite_strain)
+    sim.add_forcing_to(rod).using(AxialTension, case=drive or case, x_elements=x_el,
+                                  finite_strain=a.finite_strain)
     plane = ea.Plane(plane_origin=np.array([0.0, 0.0, -radius]), plane_normal=np.array([0.0, 0.0, 1.0]))
     sim.append(plane)
     kinetic = np.array([case.mu_forward, case.mu_backward, case.mu_backward])
@@ -131,7 +134,12 @@ def run(case, cells, dt_share, a):
         static_mu_array=static, kinetic_mu_array=kinetic)
     sim.dampen(rod).using(ea.AnalyticalLinearDamper, uniform_damping_constant=C_V / RHO, time_step=dt)
     sim.finalize()
-    stepper = ea.PositionVerlet()
+    return sim, rod, ea.PositionVerlet()
+
+
+def run(case, cells, dt_share, a):
+    dt = dt_share * (case.length / cells) / WAVE_SPEED
+    sim, rod, stepper = build(case, cells, dt, a)
     x0 = rod.position_collection[0, :cells].copy()
     metrics = Metrics(case, cells, dt, force_at=0.5)  # PositionVerlet's forces are taken mid-step
     nsteps = int(round(case.t_end / dt))
