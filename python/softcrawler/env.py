@@ -25,6 +25,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
+from .errors import invalid, whole
 from .plant import ScenarioLike
 from .report import Report
 from .scenario import Scenario, as_scenario
@@ -61,6 +62,21 @@ class PipeFamily:
     extent: float = 10.0
     nominal: tuple[float, float] | None = None
 
+    def __post_init__(self) -> None:
+        for name, (low, high), allowed in (("eps", self.eps, "finite numbers >= 0, low <= high"),
+                                           ("n_f", self.n_f, "numbers in [0, 1), low <= high")):
+            top = np.inf if name == "eps" else 1.0
+            if not (np.isfinite(low) and np.isfinite(high) and 0 <= low <= high < top):
+                raise invalid(f"pipe_family.{name}", (low, high), allowed)
+        for name in ("eps_std", "n_f_std"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise invalid(f"pipe_family.{name}", v, "a finite number >= 0")
+        for name in ("correlation", "extent"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise invalid(f"pipe_family.{name}", v, "a finite number > 0, m")
+
     def sample(self, base: Scenario, rng: np.random.Generator) -> Scenario:
         """A scenario of the family, drawn with ``rng``."""
         eps = float(rng.uniform(*self.eps))
@@ -94,6 +110,14 @@ def _base(scenario: ScenarioLike, cells: int | None, t_end: float | None) -> Sce
 _F64 = np.dtype(np.float64)
 
 
+def _numbers(field: str, values: Any) -> bytes:
+    """``values`` as float64 bytes (C order), or InvalidInput naming ``field``."""
+    try:
+        return np.ascontiguousarray(values, _F64).tobytes()
+    except (TypeError, ValueError) as e:
+        raise invalid(field, values, f"numbers (an array of float64): {e}") from None
+
+
 def _f64(b: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
     a = np.frombuffer(b)  # float64, frombuffer's default (naming it costs a lookup per call)
     return a if shape is None else a.reshape(shape)
@@ -118,6 +142,7 @@ class SoftCrawlerEnv(gym.Env):
                  fields: Sequence[str] | None = None, frame_skip: int = 1,
                  stress_weight: float = 10.0, pipe_family: PipeFamily | None = None,
                  cells: int | None = None, t_end: float | None = None) -> None:
+        segments, frame_skip = whole("segments", segments, 1), whole("frame_skip", frame_skip, 1)
         self.base = _base(scenario, cells, t_end)
         self.pipe_family = pipe_family
         self.options = dict(action=action, segments=segments, fields=list(fields or DEFAULT_FIELDS),
@@ -157,8 +182,7 @@ class SoftCrawlerEnv(gym.Env):
         return obs, {"time": 0.0, "distance": 0.0, "energy_used": 0.0}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        obs, reward, terminated, truncated, info = self._core.step(
-            np.ascontiguousarray(action, _F64).tobytes())
+        obs, reward, terminated, truncated, info = self._core.step(_numbers("action", action))
         return np.frombuffer(obs), reward, terminated, truncated, info
 
     def report(self) -> Report:
@@ -183,7 +207,8 @@ class SoftCrawlerVectorEnv(VectorEnv):
                  segments: int = 8, fields: Sequence[str] | None = None, frame_skip: int = 1,
                  stress_weight: float = 10.0, pipe_family: PipeFamily | None = None,
                  cells: int | None = None, t_end: float | None = None) -> None:
-        self.num_envs = int(num_envs)
+        self.num_envs = whole("num_envs", num_envs, 1)
+        segments, frame_skip = whole("segments", segments, 1), whole("frame_skip", frame_skip, 1)
         self.base = _base(scenario, cells, t_end)
         self.pipe_family = pipe_family
         fields = list(fields or DEFAULT_FIELDS)
@@ -217,6 +242,8 @@ class SoftCrawlerVectorEnv(VectorEnv):
             seeds = [seed + i for i in range(self.num_envs)]
         else:
             seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise invalid("seed", seed, f"one seed (or None) per environment ({self.num_envs})")
         for i, s in enumerate(seeds):
             if s is not None or self._rngs[i] is None:
                 self._rngs[i] = gym.utils.seeding.np_random(s)[0]
@@ -231,7 +258,7 @@ class SoftCrawlerVectorEnv(VectorEnv):
         for i in np.flatnonzero(self._autoreset):
             self.scenarios[i] = self._draw(int(i))
             self._core.reset_one(int(i), self.scenarios[i]._native)
-        a = np.ascontiguousarray(actions, _F64).tobytes()
+        a = _numbers("actions", actions)
         mask = (~self._autoreset).astype(np.uint8).tobytes()
         obs, rew, term, trunc = self._core.step(a, mask)
         terminated = np.frombuffer(term, dtype=bool)

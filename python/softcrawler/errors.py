@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numbers
+
 
 class SoftCrawlerError(Exception):
     """Base class of the package's exceptions."""
@@ -25,3 +27,24 @@ class RunError(SoftCrawlerError, RuntimeError):
     exit code, docs of `crawler-controller run`)."""
 
     exit_code: int | None = None
+
+
+def invalid(field: str, value: object, allowed: str) -> InvalidInput:
+    """The :class:`InvalidInput` of ``field`` given ``value`` (as the programs print it)."""
+    shown = repr(value)
+    return InvalidInput(f"invalid {field} = {shown}: allowed {allowed}", field, shown, allowed)
+
+
+#: The largest count the library takes (an unsigned 64-bit number).
+MAX_COUNT = 2**64 - 1
+
+
+def whole(field: str, value: object, low: int = 0, high: int = MAX_COUNT) -> int:
+    """``value`` as an ``int`` in ``[low, high]`` (a Python or NumPy integer, not a bool), else
+    :class:`InvalidInput` naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) \
+            or not low <= int(value) <= high:
+        allowed = f"a whole number >= {low}" if high == MAX_COUNT else \
+            f"a whole number in [{low}, {high}]"
+        raise invalid(field, value, allowed)
+    return int(value)

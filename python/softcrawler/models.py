@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from . import _native
+from .errors import whole
 from .plant import ScenarioLike
 from .scenario import as_scenario
 
@@ -102,8 +103,10 @@ def optimize(scenario: ScenarioLike = None, model: str = "paper", *,
     plant at the optimum; ``certify`` lowers f0 with plant runs until every constraint holds on
     the plant with ``margin`` to spare. The GIL is released while it runs."""
     d = json.loads(_native.optimize_json(
-        as_scenario(scenario)._native, model, omega_points, k_points, fixed_body, refine,
-        tie_tolerance, verify, certify, margin, max_runs))
+        as_scenario(scenario)._native, model,
+        None if omega_points is None else whole("omega_points", omega_points),
+        None if k_points is None else whole("k_points", k_points), fixed_body, refine,
+        tie_tolerance, verify, certify, margin, whole("max_runs", max_runs)))
     o = d["optimum"]
     opt = Optimum(omega=o["omega"], k=o["k"], alpha=o["alpha"], f0=o["f0"],
                   wavelengths=o["wavelengths"], binding=str(o["binding"]),

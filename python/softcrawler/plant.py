@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from . import _native
+from .errors import whole
 from .report import Report
 from .scenario import Scenario, as_scenario
 
@@ -22,7 +23,8 @@ def simulate(scenario: ScenarioLike = None, *, max_episodes: int = 10_000) -> Re
     """Runs the scenario's plant under its wave from t = 0 to its ``t_end`` (or, in task mode,
     to the step that decides the task): ``crawler-plant simulate --json``, bit for bit (the same
     execution loop). The GIL is released while it runs."""
-    return Report.from_json(_native.simulate_json(as_scenario(scenario)._native, max_episodes))
+    return Report.from_json(_native.simulate_json(as_scenario(scenario)._native,
+                                                      whole("max_episodes", max_episodes)))
 
 
 class Plant:
@@ -43,7 +45,8 @@ class Plant:
     def __init__(self, scenario: ScenarioLike = None, *, start_wave: bool = True,
                  max_episodes: int = 10_000) -> None:
         self.scenario = as_scenario(scenario)
-        self._p = _native.Plant(self.scenario._native, start_wave, max_episodes)
+        self._p = _native.Plant(self.scenario._native, start_wave,
+                                whole("max_episodes", max_episodes))
 
     # -- actuation --------------------------------------------------------------------------
     def set_wave(self, f0: float, k: float, omega: float, phase: float = 0.0) -> None:
@@ -60,7 +63,7 @@ class Plant:
     # -- stepping ---------------------------------------------------------------------------
     def step(self, n: int = 1) -> int:
         """Takes up to ``n`` communication steps (fewer when the run ends); returns how many."""
-        return self._p.step(n)
+        return self._p.step(whole("n", n))
 
     def run(self) -> int:
         """Steps to the end of the run; returns the steps taken."""

@@ -6,6 +6,7 @@ import os
 from typing import Any
 
 from . import _native
+from .errors import invalid, whole
 
 
 def sweep(plan: str | os.PathLike[str], *, out: str | os.PathLike[str] | None = None,
@@ -18,6 +19,10 @@ def sweep(plan: str | os.PathLike[str], *, out: str | os.PathLike[str] | None = 
     Ctrl-C finishes the running points, keeps them and raises ``KeyboardInterrupt``."""
     import pyarrow.parquet as pq
 
+    if not isinstance(plan, (str, os.PathLike)):
+        raise invalid("plan", plan, "a sweep plan file's path")
+    if jobs is not None:
+        jobs = whole("jobs", jobs, 1)
     path = _native.sweep(os.fspath(plan), None if out is None else os.fspath(out),
                          None if store is None else os.fspath(store), jobs, retry_failed,
                          os.fspath(root))

@@ -103,3 +103,55 @@ def test_bad_environment_options_name_their_field():
     with pytest.raises(InvalidInput) as e:
         env.SoftCrawlerEnv(frame_skip=0, cells=64, t_end=5.2)
     assert e.value.field == "frame_skip"
+
+
+@pytest.mark.parametrize("call, field", [
+    (lambda s: softcrawler.Plant(s).step(-1), "n"),
+    (lambda s: softcrawler.Plant(s).step(1.5), "n"),
+    (lambda s: softcrawler.Plant(s).step(2**70), "n"),
+    (lambda s: softcrawler.Plant(s, max_episodes=-1), "max_episodes"),
+    (lambda s: softcrawler.simulate(s, max_episodes=True), "max_episodes"),
+    (lambda s: softcrawler.optimize(s, omega_points=-3), "omega_points"),
+    (lambda s: softcrawler.optimize(s, k_points="many"), "k_points"),
+    (lambda s: softcrawler.sweep({"points": 3}), "plan"),
+    (lambda s: softcrawler.sweep("plan.toml", jobs=0), "jobs"),
+])
+def test_a_bad_count_or_argument_type_names_its_argument(small, call, field):
+    with pytest.raises(InvalidInput) as e:
+        call(small)
+    assert e.value.field == field and e.value.allowed, e.value
+
+
+def test_bad_environment_arguments_name_their_field_before_anything_runs():
+    import softcrawler.env as env
+
+    kw = dict(cells=64, t_end=5.2)
+    for make, field in [
+        (lambda: env.SoftCrawlerEnv(frame_skip=-1, **kw), "frame_skip"),
+        (lambda: env.SoftCrawlerEnv(segments=2.5, **kw), "segments"),
+        (lambda: env.SoftCrawlerEnv(fields=["strain", "strain"], **kw), "fields"),
+        (lambda: env.SoftCrawlerVectorEnv(-1, **kw), "num_envs"),
+        (lambda: env.PipeFamily(eps=(0.5, 0.1)), "pipe_family.eps"),
+        (lambda: env.PipeFamily(n_f=(float("nan"), 0.5)), "pipe_family.n_f"),
+        (lambda: env.PipeFamily(n_f=(0.3, 1.0)), "pipe_family.n_f"),
+        (lambda: env.PipeFamily(eps_std=-0.1), "pipe_family.eps_std"),
+        (lambda: env.PipeFamily(correlation=0.0), "pipe_family.correlation"),
+    ]:
+        with pytest.raises(InvalidInput) as e:
+            make()
+        assert e.value.field == field, (field, e.value)
+    one = env.SoftCrawlerEnv(**kw)
+    one.reset(seed=0)
+    digest = one.state_digest
+    with pytest.raises(InvalidInput) as e:
+        one.step("fast")
+    assert e.value.field == "action"
+    assert one.state_digest == digest, "a refused action takes no step"
+    vec = env.SoftCrawlerVectorEnv(3, **kw)
+    vec.reset(seed=0)
+    with pytest.raises(InvalidInput) as e:
+        vec.reset(seed=[1, 2])
+    assert e.value.field == "seed"
+    with pytest.raises(InvalidInput) as e:
+        vec.step([["fast"] * 3] * 3)
+    assert e.value.field == "actions"

@@ -114,7 +114,11 @@ impl Sensor {
         for f in fields {
             match FIELDS.iter().position(|(n, ..)| n == f) {
                 Some(i) if !idx.contains(&i) => idx.push(i),
-                Some(_) => return Err(format!("fields: {f:?} given twice")),
+                Some(_) => {
+                    return Err(format!(
+                        "fields: {f:?}: allowed each field once (given twice)"
+                    ))
+                }
                 None => {
                     return Err(format!(
                         "fields: {f:?}: allowed {}",
