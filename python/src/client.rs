@@ -15,7 +15,7 @@ use crawler_transport::NetworkArgs;
 
 use crate::policy::PyPolicy;
 use crate::scenario::PyScenario;
-use crate::{any_error, invalid, run_error};
+use crate::{any_error, input_error, invalid, run_error};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(control, m)?)?;
@@ -66,7 +66,7 @@ fn control(
         no_auth,
     }
     .network()
-    .map_err(|e| any_error(py, e))?;
+    .map_err(|e| input_error(py, e))?;
     let scenario: Scenario = match scenario {
         Some(s) => s.inner.clone(),
         None => Scenario::paper(),

@@ -69,6 +69,27 @@ pub(crate) fn any_error(py: Python<'_>, e: anyhow::Error) -> PyErr {
     run_error(py, format!("{e:#}"))
 }
 
+/// An error of checking inputs (the network options' run id, endpoint, zenoh configuration):
+/// `InvalidInput` when it is worded as every check of the project words its refusals, `invalid
+/// FIELD = VALUE: allowed ...` (a flag's name given as the Python argument's, `--zenoh-config`
+/// as `zenoh_config`), else as [`any_error`].
+pub(crate) fn input_error(py: Python<'_>, e: anyhow::Error) -> PyErr {
+    let root = e.root_cause().to_string();
+    let parts = root.strip_prefix("invalid ").and_then(|rest| {
+        let (head, allowed) = rest.split_once(": allowed ")?;
+        let (field, value) = head.split_once(" = ")?;
+        Some((
+            field.trim_start_matches("--").replace('-', "_"),
+            value,
+            allowed,
+        ))
+    });
+    match parts {
+        Some((field, value, allowed)) => invalid(py, &field, value, allowed),
+        None => any_error(py, e),
+    }
+}
+
 /// `f64`s as a `bytes` object (native endianness), written once.
 pub(crate) fn f64_bytes<'py>(py: Python<'py>, xs: &[f64]) -> Bound<'py, PyBytes> {
     PyBytes::new(py, bytemuck::cast_slice(xs))

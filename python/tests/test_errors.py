@@ -155,3 +155,20 @@ def test_bad_environment_arguments_name_their_field_before_anything_runs():
     with pytest.raises(InvalidInput) as e:
         vec.step([["fast"] * 3] * 3)
     assert e.value.field == "actions"
+
+
+@pytest.mark.parametrize("options, field", [
+    (dict(run_id="a*b"), "run_id"),  # a key-expression wildcard: another run's keys
+    (dict(run_id="../up"), "run_id"),
+    (dict(run_id="r1", endpoint="tcp/0.0.0.0:7447"), "endpoint"),  # not loopback
+    (dict(run_id="r1", zenoh_config="/nonexistent/zenoh.json5"), "zenoh_config"),
+    (dict(run_id="r1", wait_timeout=float("nan")), "wait_timeout"),
+])
+def test_bad_network_options_name_their_argument_before_any_connection(options, field):
+    class Still:
+        def act(self, obs):
+            return softcrawler.Wave(0.0, 2 * np.pi, 10.0)
+
+    with pytest.raises(InvalidInput) as e:
+        softcrawler.connect(**options).run(Still())
+    assert e.value.field == field, e.value
