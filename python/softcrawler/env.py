@@ -25,7 +25,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
-from .errors import invalid, whole
+from .errors import InvalidInput, invalid, whole
 from .plant import ScenarioLike
 from .report import Report
 from .scenario import Scenario, as_scenario
@@ -110,12 +110,9 @@ def _base(scenario: ScenarioLike, cells: int | None, t_end: float | None) -> Sce
 _F64 = np.dtype(np.float64)
 
 
-def _numbers(field: str, values: Any) -> bytes:
-    """``values`` as float64 bytes (C order), or InvalidInput naming ``field``."""
-    try:
-        return np.ascontiguousarray(values, _F64).tobytes()
-    except (TypeError, ValueError) as e:
-        raise invalid(field, values, f"numbers (an array of float64): {e}") from None
+def _not_numbers(field: str, values: Any, e: Exception) -> InvalidInput:
+    """The error of ``values`` that NumPy cannot read as float64s."""
+    return invalid(field, values, f"numbers (an array of float64): {e}")
 
 
 def _f64(b: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
@@ -182,7 +179,11 @@ class SoftCrawlerEnv(gym.Env):
         return obs, {"time": 0.0, "distance": 0.0, "energy_used": 0.0}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        obs, reward, terminated, truncated, info = self._core.step(_numbers("action", action))
+        try:  # inline: this is the hot path
+            a = np.ascontiguousarray(action, _F64).tobytes()
+        except (TypeError, ValueError) as e:
+            raise _not_numbers("action", action, e) from None
+        obs, reward, terminated, truncated, info = self._core.step(a)
         return np.frombuffer(obs), reward, terminated, truncated, info
 
     def report(self) -> Report:
@@ -258,7 +259,10 @@ class SoftCrawlerVectorEnv(VectorEnv):
         for i in np.flatnonzero(self._autoreset):
             self.scenarios[i] = self._draw(int(i))
             self._core.reset_one(int(i), self.scenarios[i]._native)
-        a = _numbers("actions", actions)
+        try:
+            a = np.ascontiguousarray(actions, _F64).tobytes()
+        except (TypeError, ValueError) as e:
+            raise _not_numbers("actions", actions, e) from None
         mask = (~self._autoreset).astype(np.uint8).tobytes()
         obs, rew, term, trunc = self._core.step(a, mask)
         terminated = np.frombuffer(term, dtype=bool)
