@@ -16,9 +16,10 @@ Usage: .venv/bin/python bench/python_bench.py [--rounds R] [--cells N] [--t-end 
    the figures are the package's overhead, not an agent's. Short windows (--seconds), many
    interleaved rounds (--env-rounds), the median and quartiles of the per-round ratios: this
    VM's speed drifts over seconds, so only neighbouring windows compare.
-3. What stepping many crawlers costs in Rust alone: `crawler-plant bench --plants 64` (64 plants
-   stepped in turn on one thread, their states too many for the cache) against `--plants 1`, in
-   the same rounds.
+3. What stepping many crawlers costs: `crawler-plant bench --plants 64` (64 plants stepped in
+   turn on one thread, their states too many for the cache) against `--plants 1`, and in process
+   64 `Plant`s stepped in turn by `Plant.step(1)` (Python between their steps, as in a vector)
+   against one stepped so, in the same rounds.
 Needs the package installed (scripts/setup-python.sh) and target/release/crawler-plant.
 """
 
@@ -168,6 +169,26 @@ class EnvLoop:
         return n / (time.perf_counter() - t0)
 
 
+class TurnLoop:
+    """`plants` plants of the scenario, each stepped one communication step per `Plant.step(1)`
+    call, in turn (a vector's order, with Python between its crawlers' steps): against one plant
+    stepped the same way, what 64 crawlers' states cost in the cache."""
+
+    def __init__(self, cells: int, plants: int) -> None:
+        self.plants = [softcrawler.Plant(rate_scenario(cells)) for _ in range(plants)]
+        for p in self.plants:
+            p.step(WARM_STEPS)
+
+    def rate(self, seconds: float) -> float:
+        n = 0
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            for p in self.plants:
+                p.step(1)
+            n += len(self.plants)
+        return n / (time.perf_counter() - t0)
+
+
 def plant_bench(cells: int, plants: int, seconds: float) -> float:
     """Cell updates per second of `crawler-plant bench` with `plants` plants stepped in turn."""
     out = subprocess.run([str(TARGET / "release" / "crawler-plant"), "bench", "--cells",
@@ -207,9 +228,10 @@ def main() -> int:
     cores = os.cpu_count() or 1
     loops = [RustLoop(args.cells, 1), EnvLoop(1, args.cells, args.frame_skip),
              RustLoop(args.cells, cores), EnvLoop(64, args.cells, args.frame_skip)]
-    rust, one, rust_all, vec, p1, p64 = [], [], [], [], [], []
+    turns = [TurnLoop(args.cells, 1), TurnLoop(args.cells, 64)]
+    rust, one, rust_all, vec, p1, p64, t1, t64 = [], [], [], [], [], [], [], []
     for _ in range(args.env_rounds):
-        for loop, out in zip(loops, (rust, one, rust_all, vec)):
+        for loop, out in zip(loops + turns, (rust, one, rust_all, vec, t1, t64)):
             out.append(loop.rate(args.seconds))
         p1.append(plant_bench(args.cells, 1, args.seconds))
         p64.append(plant_bench(args.cells, 64, args.seconds))
@@ -217,6 +239,7 @@ def main() -> int:
     one_ratios = [x / y for x, y in zip(one, rust)]
     vec_ratios = [x / y for x, y in zip(vec, rust_all)]
     many_ratios = [x / y for x, y in zip(p64, p1)]
+    turn_ratios = [x / y for x, y in zip(t64, t1)]
     print(f"communication steps per second, {args.cells} cells, frame_skip {args.frame_skip}, "
           f"{args.env_rounds} interleaved rounds of {args.seconds} s windows (medians):")
     print(f"  Rust loop, one crawler (Plant.step(500)):           {r:10.0f}")
@@ -229,6 +252,8 @@ def main() -> int:
           f"of the Rust loop's rate on {cores} threads: {quartiles(vec_ratios)}")
     print(f"  Rust alone, 64 plants stepped in turn on one thread, of one plant's rate "
           f"(crawler-plant bench --plants 64 / --plants 1): {quartiles(many_ratios)}")
+    print(f"  in process, 64 plants in turn by Plant.step(1), of one plant stepped so: "
+          f"{quartiles(turn_ratios)}")
     return 0
 
 
