@@ -63,19 +63,27 @@ class PipeFamily:
     nominal: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
-        for name, (low, high), allowed in (("eps", self.eps, "finite numbers >= 0, low <= high"),
-                                           ("n_f", self.n_f, "numbers in [0, 1), low <= high")):
-            top = np.inf if name == "eps" else 1.0
+        def number(v: Any) -> float:
+            try:
+                return float(v)
+            except (TypeError, ValueError):
+                return float("nan")
+
+        for name, top, allowed in (("eps", np.inf, "two finite numbers >= 0, low <= high"),
+                                   ("n_f", 1.0, "two numbers in [0, 1), low <= high")):
+            pair = getattr(self, name)
+            try:
+                low, high = (number(x) for x in pair)
+            except (TypeError, ValueError):
+                low = high = float("nan")
             if not (np.isfinite(low) and np.isfinite(high) and 0 <= low <= high < top):
-                raise invalid(f"pipe_family.{name}", (low, high), allowed)
-        for name in ("eps_std", "n_f_std"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise invalid(f"pipe_family.{name}", v, "a finite number >= 0")
-        for name in ("correlation", "extent"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise invalid(f"pipe_family.{name}", v, "a finite number > 0, m")
+                raise invalid(f"pipe_family.{name}", pair, allowed)
+        for name, positive in (("eps_std", False), ("n_f_std", False), ("correlation", True),
+                               ("extent", True)):
+            v = number(getattr(self, name))
+            if not (np.isfinite(v) and (v > 0 if positive else v >= 0)):
+                raise invalid(f"pipe_family.{name}", getattr(self, name),
+                              "a finite number > 0, m" if positive else "a finite number >= 0")
 
     def sample(self, base: Scenario, rng: np.random.Generator) -> Scenario:
         """A scenario of the family, drawn with ``rng``."""
@@ -256,14 +264,17 @@ class SoftCrawlerVectorEnv(VectorEnv):
         return _f64(b"".join(rows), (self.num_envs, self._obs_dim)), {}
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        for i in np.flatnonzero(self._autoreset):
-            self.scenarios[i] = self._draw(int(i))
-            self._core.reset_one(int(i), self.scenarios[i]._native)
         try:
             a = np.ascontiguousarray(actions, _F64).tobytes()
         except (TypeError, ValueError) as e:
             raise _not_numbers("actions", actions, e) from None
         mask = (~self._autoreset).astype(np.uint8).tobytes()
+        resets = np.flatnonzero(self._autoreset)
+        if len(resets):
+            self._core.check(a, mask)  # refused actions reset nothing
+        for i in resets:
+            self.scenarios[i] = self._draw(int(i))
+            self._core.reset_one(int(i), self.scenarios[i]._native)
         obs, rew, term, trunc = self._core.step(a, mask)
         terminated = np.frombuffer(term, dtype=bool)
         truncated = np.frombuffer(trunc, dtype=bool)

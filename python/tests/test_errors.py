@@ -172,3 +172,31 @@ def test_bad_network_options_name_their_argument_before_any_connection(options, 
     with pytest.raises(InvalidInput) as e:
         softcrawler.connect(**options).run(Still())
     assert e.value.field == field, e.value
+
+
+def test_a_refused_vector_step_steps_and_resets_no_crawler():
+    import softcrawler.env as env
+
+    vec = env.SoftCrawlerVectorEnv(4, cells=64, t_end=5.2, frame_skip=40)
+    vec.reset(seed=0)
+    w = vec.base.wave
+    good = np.tile([0.1, w["omega"], w["k"]], (4, 1))
+    good[0, 0] = 5.0  # f0_max: crawler 0 spends J0 long before the others end
+    for _ in range(200):  # until a crawler's episode has ended (reset at the next step)
+        vec.step(good)
+        if vec._autoreset.any():
+            break
+    assert vec._autoreset.any()
+    before = [vec.state_digest(i) for i in range(4)]
+    bad = good.copy()
+    bad[int(np.flatnonzero(~vec._autoreset)[0]), 1] = np.nan
+    with pytest.raises(InvalidInput) as e:
+        vec.step(bad)
+    assert e.value.field.startswith("actions[")
+    assert [vec.state_digest(i) for i in range(4)] == before, "nothing stepped, nothing reset"
+    with pytest.raises(InvalidInput) as e:
+        env.PipeFamily(eps=0.3)
+    assert e.value.field == "pipe_family.eps"
+    with pytest.raises(InvalidInput) as e:
+        env.PipeFamily(extent="far")
+    assert e.value.field == "pipe_family.extent"

@@ -179,27 +179,25 @@ impl PyVecCore {
         Ok(f64_bytes(py, &obs))
     }
 
+    /// Checks a step's `actions` and `mask` as [`Self::step`] does, stepping nothing (so that a
+    /// caller can refuse them before it resets anything).
+    fn check(&self, py: Python<'_>, actions: &[u8], mask: &[u8]) -> PyResult<()> {
+        self.checked(py, actions, mask).map(|_| ())
+    }
+
     /// Steps the crawlers whose `mask` byte is 1 with their rows of `actions` (float64 bytes,
     /// one row per crawler), in parallel with the GIL released: (observations, rewards,
     /// terminated, truncated) as bytes (float64 rows; float64; bool; bool). Crawlers not stepped
-    /// give their current observation and zeros.
+    /// give their current observation and zeros. Actions are checked before any crawler steps.
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         actions: &[u8],
         mask: &[u8],
     ) -> PyResult<Bound<'py, PyTuple>> {
-        let a = f64s_from(py, "actions", actions)?;
+        let a = self.checked(py, actions, mask)?;
         let n = self.envs.len();
         let dim = self.envs[0].actuator.dim();
-        if a.len() != n * dim || mask.len() != n {
-            return Err(invalid(
-                py,
-                "actions",
-                &format!("{} numbers", a.len()),
-                &format!("{n} rows of {dim} numbers"),
-            ));
-        }
         let obs_dim = self.envs[0].sensor.dim();
         let envs = &mut self.envs;
         let mut obs = vec![0.0; n * obs_dim];
@@ -260,6 +258,35 @@ impl PyVecCore {
             .get(i)
             .ok_or_else(|| pyo3::exceptions::PyIndexError::new_err(i))?;
         Ok(crawler_physics::report::state_digest(e.run.plant()))
+    }
+}
+
+impl PyVecCore {
+    /// The actions of a step, refused whole when they are not one row per crawler or when a
+    /// crawler to step has a NaN (no crawler steps then).
+    fn checked(&self, py: Python<'_>, actions: &[u8], mask: &[u8]) -> PyResult<Vec<f64>> {
+        let a = f64s_from(py, "actions", actions)?;
+        let n = self.envs.len();
+        let dim = self.envs[0].actuator.dim();
+        if a.len() != n * dim || mask.len() != n {
+            return Err(invalid(
+                py,
+                "actions",
+                &format!("{} numbers", a.len()),
+                &format!("{n} rows of {dim} numbers"),
+            ));
+        }
+        for (i, (row, &m)) in a.chunks(dim).zip(mask).enumerate() {
+            if let Some(j) = row.iter().position(|x| x.is_nan()).filter(|_| m != 0) {
+                return Err(invalid(
+                    py,
+                    &format!("actions[{i}][{j}]"),
+                    "NaN",
+                    "numbers (not NaN)",
+                ));
+            }
+        }
+        Ok(a)
     }
 }
 
