@@ -33,7 +33,7 @@ import gymnasium as gym
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import AREA, CASES, EA, STUCK_SPEED_SHARE, WAVE_SPEED  # noqa: E402
+from common import AREA, C_D, C_V, CASES, EA, STUCK_SPEED_SHARE, WAVE_SPEED  # noqa: E402
 from elastica_crawler import build, parser  # noqa: E402
 
 
@@ -58,7 +58,7 @@ class ElasticaCrawlerEnv(gym.Env):
         self.distance, self.energy_budget = distance, energy
         self.sigma_max, self.t_end, self.stress_weight = sigma_max, t_end, stress_weight
         self.options = parser().parse_args(["--case", "paper", "--dt-share", str(dt_share)])
-        self.stuck_speed = STUCK_SPEED_SHARE * self.case.eps * 1.0 / 1.0  # c_d = c_v = 1
+        self.stuck_speed = STUCK_SPEED_SHARE * self.case.eps * C_D / C_V  # as common.Metrics
         self.x_el = (np.arange(cells) + 0.5) * self.dx
         k = self.case.k
         self.action_space = gym.spaces.Box(np.array([0.0, omega[0], k]),
@@ -83,8 +83,8 @@ class ElasticaCrawlerEnv(gym.Env):
         self.speed = 0.0
         return self._observe(), {}
 
-    def _tension(self, x: np.ndarray, t: float) -> np.ndarray:
-        """Each element's tension (the small-strain model's), N."""
+    def _tension(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Each element's tension (the small-strain model's), N, and strain."""
         strain = np.diff(x) / self.dx - 1.0
         d = self.drive
         return EA * strain + d.f0 * np.sin(d.k * self.x_el - d.omega * t), strain
